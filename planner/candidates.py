@@ -1,0 +1,326 @@
+"""Candidate lateral profiles: Algorithm 4 (naive offsets) and Algorithm 5 (TransF-κ repair).
+
+Each candidate is a smooth lateral profile ``d(s)`` over the path ahead of the ego. With
+``τ = clip((s − s₀)/L, 0, 1)`` for a transition length ``L`` [m]::
+
+    d(s) = h(τ)·d_end(s) + d₀·H₀(τ) + d₀′L·H₁(τ) + d₀″L²·H₂(τ)
+
+where ``h(τ) = 10τ³ − 15τ⁴ + 6τ⁵`` and ``H₀ = 1 − h``, ``H₁``, ``H₂`` are the quintic Hermite basis
+functions, so the profile starts at the ego's ``(d, d′, d″)`` and settles, with zero slope and zero
+curvature, onto ``d_end(s) = α·w(s)``: a fixed fraction ``α ∈ [−1, 1]`` of the usable half-width on
+that side (lane width less half the vehicle width and a margin). ``α`` and ``L`` are drawn from
+``seed`` (stratified in ``α``); the profile is then kept inside the lane bounds.
+
+* ``naive`` (Algorithm 4) maps every ``(s, d)`` to Cartesian with ``x = r(s) + d·n(s)`` as is. Where
+  ``κ·d ≥ 1`` the offset curve folds back: it runs backwards and may self-intersect.
+* ``transf_kappa`` (Algorithm 5) takes each point where ``κ·d ≥ 1`` — and, more generally, each point
+  whose Cartesian position TransF-κ attributes to another part of the reference (a wide inner side of
+  a U-turn overlapping the opposite leg) — to Cartesian and back through TransF-κ, which lands it,
+  by the biggest-index rule, beyond the high-curvature stretch. The candidate then keeps only points
+  whose ``s`` exceeds every ``s`` before it: the stretch folded behind the repaired point is jumped
+  and ``s`` strictly increases along the candidate. A point is kept only if ``κ(s)·d < 1``.
+
+Everything is vectorised over candidates × points; the only loops run over a fixed small number of
+walk steps inside TransF-κ.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.errors import InvalidInputError
+from planner.frenet import offset_basis, to_cartesian, to_frenet
+from planner.problem import Ego, Generator, Lane, Options, Vehicle
+from planner.reference import FloatArray, ReferenceLine, widths_at
+
+#: largest heading difference between ego and reference accepted [rad]
+MAX_EGO_HEADING_ERROR = np.pi / 2 - 1e-3
+#: round-trip tolerance separating consistent points from those TransF-κ attributes elsewhere [m]
+_CONSISTENCY_TOLERANCE = 1e-6
+
+
+@dataclass(frozen=True)
+class EgoFrenet:
+    """The ego in the Frenet frame: ``s`` [m], ``d`` [m], ``d′ = dd/ds`` [-], ``d″`` [1/m]."""
+
+    s: float
+    d: float
+    dd: float
+    ddd: float
+    heading_error: float
+
+
+@dataclass(frozen=True)
+class LaneBounds:
+    """Usable lateral bounds of the vehicle's centre at arc lengths ``s`` [m]: ``lower ≤ d ≤ upper``."""
+
+    s: FloatArray
+    lower: FloatArray
+    upper: FloatArray
+
+
+@dataclass(frozen=True)
+class CandidateSet:
+    """``N`` candidates of ``P`` points each.
+
+    Attributes:
+        s, d: Frenet coordinates [m], shape (N, P); repaired values where a point was repaired.
+        xy: Cartesian points [m], shape (N, P, 2).
+        kappa: reference curvature at ``s`` [1/m], shape (N, P).
+        valid: whether each point belongs to the candidate (False where Algorithm 5 jumped it),
+            shape (N, P); always all True for ``naive``.
+        repaired: whether any point of the candidate was repaired or jumped, shape (N,).
+        end_fraction: α, the end offset as a fraction of the usable half-width, shape (N,).
+        transition: L, the transition length [m], shape (N,).
+        generator: ``naive`` or ``transf_kappa``.
+    """
+
+    s: FloatArray
+    d: FloatArray
+    xy: FloatArray
+    kappa: FloatArray
+    valid: NDArray[np.bool_]
+    repaired: NDArray[np.bool_]
+    end_fraction: FloatArray
+    transition: FloatArray
+    generator: Generator
+
+    @property
+    def count(self) -> int:
+        """Number of candidates N."""
+        return int(self.s.shape[0])
+
+    def points(self, i: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(s, d, xy)`` of the points kept in candidate ``i``."""
+        keep = self.valid[i]
+        return self.s[i, keep], self.d[i, keep], self.xy[i, keep]
+
+
+def ego_frenet(ref: ReferenceLine, ego: Ego) -> EgoFrenet:
+    """The ego's Frenet state by TransF-κ.
+
+    With heading error ``Δθ = θ − θ_r(s)``: ``d′ = (1 − κd)·tan Δθ`` and, when the ego's path
+    curvature ``κ_x`` is known,
+    ``d″ = −(κ′d + κd′)·tan Δθ + (1 − κd)/cos²Δθ · (κ_x(1 − κd)/cos Δθ − κ)``; otherwise ``d″ = 0``.
+    """
+    fr = to_frenet(ref, [[ego.x, ego.y]])
+    s, d = float(fr.s[0]), float(fr.d[0])
+    err = float(np.angle(np.exp(1j * (ego.heading - ref.heading_at(s)))))
+    if abs(err) > MAX_EGO_HEADING_ERROR:
+        raise InvalidInputError(
+            f"points {np.degrees(err):.0f}° away from the reference line's driving direction",
+            field="ego.heading",
+        )
+    kappa = float(ref.kappa_at(s))
+    one = 1.0 - kappa * d
+    dd = one * np.tan(err)
+    ddd = 0.0
+    if ego.curvature is not None:
+        dk = float(np.gradient(ref.kappa, ref.s)[np.clip(int(s / ref.spacing), 0, ref.size - 1)])
+        ddd = -(dk * d + kappa * dd) * np.tan(err) + one / np.cos(err) ** 2 * (
+            ego.curvature * one / np.cos(err) - kappa
+        )
+    return EgoFrenet(s=s, d=d, dd=float(dd), ddd=float(ddd), heading_error=err)
+
+
+def lane_bounds(
+    ref: ReferenceLine, lane: Lane, s: FloatArray, *, half_width: float, margin: float
+) -> LaneBounds:
+    """Bounds of the vehicle centre: lane widths shrunk by ``half_width + margin`` [m] on each side.
+
+    Where the lane is narrower than that, both bounds meet in the middle of the lane.
+    """
+    left = widths_at(lane.left_width, ref, s, field_name="lane.left_width")
+    right = widths_at(lane.right_width, ref, s, field_name="lane.right_width")
+    upper = left - half_width - margin
+    lower = -(right - half_width - margin)
+    squeezed = lower > upper
+    mid = 0.5 * (left - right)
+    upper = np.where(squeezed, mid, upper)
+    lower = np.where(squeezed, mid, lower)
+    return LaneBounds(s=s, lower=lower, upper=upper)
+
+
+def path_length(ego: Ego, vehicle: Vehicle, options: Options) -> float:
+    """Arc length the candidates cover [m]: the distance at the faster of current and target speed
+    over the horizon, at least ``min_path_length``."""
+    target = vehicle.max_speed if options.target_speed is None else options.target_speed
+    return max(options.min_path_length, options.horizon_time * max(ego.speed, target))
+
+
+def _hermite(tau: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    t2 = tau * tau
+    t3 = t2 * tau
+    t4 = t3 * tau
+    t5 = t4 * tau
+    h = 10 * t3 - 15 * t4 + 6 * t5
+    h1 = tau - 6 * t3 + 8 * t4 - 3 * t5
+    h2 = 0.5 * t2 - 1.5 * t3 + 1.5 * t4 - 0.5 * t5
+    return h, 1.0 - h, h1, h2
+
+
+def generate_candidates(
+    ref: ReferenceLine,
+    lane: Lane,
+    ego: Ego,
+    vehicle: Vehicle,
+    options: Options,
+    *,
+    start: EgoFrenet | None = None,
+) -> CandidateSet:
+    """Generate ``options.num_candidates`` candidates of ``options.num_points`` points.
+
+    Raises :class:`InvalidInputError` when the ego is at or past the end of the reference line.
+    """
+    start = ego_frenet(ref, ego) if start is None else start
+    s_end = min(start.s + path_length(ego, vehicle, options), ref.length)
+    if s_end - start.s < 1e-3:
+        raise InvalidInputError("the ego is at or past the end of the reference line", field="ego")
+    n, p = options.num_candidates, options.num_points
+    rng = np.random.default_rng(options.seed)
+    span = s_end - start.s
+    alpha = -1.0 + 2.0 * (np.arange(n) + rng.uniform(size=n)) / n
+    transition = span * rng.uniform(0.3, 1.0, size=n)
+
+    # Everything that depends on s alone is computed once per column, not per candidate.
+    s_row = np.linspace(start.s, s_end, p)
+    bounds = lane_bounds(ref, lane, s_row, half_width=0.5 * vehicle.width, margin=options.lateral_margin)
+    origin, normal = offset_basis(ref, s_row)
+    kappa_row = ref.kappa_at(s_row)
+
+    limits = None
+    lower_row, upper_row = bounds.lower, bounds.upper
+    if options.generator == "transf_kappa":
+        limits = _consistent_offsets(ref, s_row, bounds, separation=0.5 * vehicle.width)
+        lower_row, upper_row = limits.lower_own, limits.upper_own
+
+    tau = np.clip((s_row[None, :] - start.s) / transition[:, None], 0.0, 1.0)
+    h, h0, h1, h2 = _hermite(tau)
+    end = np.where(alpha[:, None] >= 0, alpha[:, None] * bounds.upper, -alpha[:, None] * bounds.lower)
+    d = h * end + start.d * h0 + (start.dd * transition)[:, None] * h1
+    d += (start.ddd * transition**2)[:, None] * h2
+    # Keep inside the bounds, relaxed near the start where the ego itself may lie outside them.
+    lower = lower_row + np.minimum(0.0, start.d - lower_row) * h0
+    upper = upper_row + np.maximum(0.0, start.d - upper_row) * h0
+    np.clip(d, lower, upper, out=d)
+    s = np.broadcast_to(s_row, d.shape)
+    xy = origin[None, :, :] + d[:, :, None] * normal[None, :, :]
+    if limits is None:
+        return CandidateSet(
+            s=s,
+            d=d,
+            xy=xy,
+            kappa=np.broadcast_to(kappa_row, d.shape),
+            valid=np.ones(d.shape, dtype=bool),
+            repaired=np.zeros(n, dtype=bool),
+            end_fraction=alpha,
+            transition=transition,
+            generator="naive",
+        )
+    return _repair(ref, s, d, xy, limits, alpha, transition)
+
+
+def _round_trips(ref: ReferenceLine, s: FloatArray, d: FloatArray) -> NDArray[np.bool_]:
+    """Whether ``(s, d)`` is TransF-κ's own answer for its Cartesian point (and κ·d < 1)."""
+    fr = to_frenet(ref, to_cartesian(ref, s, d))
+    return (
+        (np.abs(fr.s - s) <= _CONSISTENCY_TOLERANCE)
+        & (np.abs(fr.d - d) <= _CONSISTENCY_TOLERANCE)
+        & (ref.kappa_at(s) * d < 1.0)
+    )
+
+
+@dataclass(frozen=True)
+class OffsetLimits:
+    """Per column, offsets [m] that TransF-κ maps back to themselves, and the candidates' own bounds.
+
+    ``[lower_ok, upper_ok] ∋ 0`` round-trips through TransF-κ (conservatively). Where the round trip
+    first fails because another stretch of the reference is nearer (the lane overlaps the opposite
+    leg of a U-turn, κ·d < 1 still), the lane is cut at that medial axis less ``separation``:
+    ``[lower_own, upper_own]``; where it fails because κ·d reaches 1, the lane bound stays and
+    Algorithm 5 repairs the points beyond.
+    """
+
+    lower_ok: FloatArray
+    upper_ok: FloatArray
+    lower_own: FloatArray
+    upper_own: FloatArray
+
+
+def _consistent_offsets(
+    ref: ReferenceLine,
+    s_row: FloatArray,
+    bounds: LaneBounds,
+    *,
+    separation: float,
+    levels: int = 32,
+) -> OffsetLimits:
+    """Find the :class:`OffsetLimits` of each column.
+
+    Along a normal, the points whose nearest reference point is the normal's foot form an interval
+    around the reference (up to the medial axis, and never beyond the centre of curvature). Testing
+    ``levels`` offsets between 0 and each bound in one TransF-κ call, the interval ends at the last
+    offset before the first that fails — conservative: points beyond it are simply sent through
+    TransF-κ. Cost: TransF-κ on ``2·levels·P`` points, independent of the candidate count.
+    """
+    frac = np.linspace(0.0, 1.0, levels + 1)[1:]
+    kappa = ref.kappa_at(s_row)
+    out = []
+    for bound, sign in ((bounds.upper, 1.0), (bounds.lower, -1.0)):
+        offsets = frac[:, None] * bound[None, :]  # (levels, P)
+        ok = _round_trips(ref, np.broadcast_to(s_row, offsets.shape).reshape(-1), offsets.reshape(-1))
+        ok = ok.reshape(offsets.shape)
+        first_bad = np.where(ok.all(axis=0), levels, np.argmin(ok, axis=0))
+        last_ok = np.where(first_bad > 0, frac[np.maximum(first_bad - 1, 0)], 0.0) * bound
+        failed_at = frac[np.minimum(first_bad, levels - 1)] * bound
+        other_branch = (first_bad < levels) & (kappa * failed_at < 1.0 - 1.0 / levels)
+        own = np.where(other_branch, sign * np.maximum(sign * last_ok - separation, 0.0), bound)
+        out.append((last_ok, own))
+    (upper_ok, upper_own), (lower_ok, lower_own) = out
+    return OffsetLimits(lower_ok=lower_ok, upper_ok=upper_ok, lower_own=lower_own, upper_own=upper_own)
+
+
+def _repair(
+    ref: ReferenceLine,
+    s: FloatArray,
+    d: FloatArray,
+    xy: FloatArray,
+    limits: OffsetLimits,
+    alpha: FloatArray,
+    transition: FloatArray,
+) -> CandidateSet:
+    """Algorithm 5 over all candidates at once (see the module docstring).
+
+    Points outside ``[lower_ok, upper_ok]`` (which excludes every κ·d ≥ 1 point) go to Cartesian
+    and back through TransF-κ; the others are TransF-κ's own answer already.
+    """
+    bad = (d > limits.upper_ok[None, :]) | (d < limits.lower_ok[None, :])
+    s_new = np.array(s, dtype=float)
+    d_new = d.copy()
+    if bad.any():
+        fr = to_frenet(ref, xy[bad])
+        s_new[bad] = fr.s
+        d_new[bad] = fr.d
+    # Keep the strict running records of s: the stretch folded behind a repaired point is jumped.
+    before = np.empty_like(s_new)
+    before[:, 0] = -np.inf
+    np.maximum.accumulate(s_new[:, :-1], axis=1, out=before[:, 1:])
+    kappa_new = ref.kappa_at(s_new)
+    valid = (s_new > before) & (kappa_new * d_new < 1.0)
+    valid[:, 0] = True
+    changed = (np.abs(s_new - s) > _CONSISTENCY_TOLERANCE) | (np.abs(d_new - d) > _CONSISTENCY_TOLERANCE)
+    repaired: NDArray[np.bool_] = np.any(changed | ~valid, axis=1)
+    return CandidateSet(
+        s=s_new,
+        d=d_new,
+        xy=xy,
+        kappa=kappa_new,
+        valid=valid,
+        repaired=repaired,
+        end_fraction=alpha,
+        transition=transition,
+        generator="transf_kappa",
+    )
