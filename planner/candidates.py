@@ -151,15 +151,29 @@ def path_length(ego: Ego, vehicle: Vehicle, options: Options) -> float:
     return max(options.min_path_length, options.horizon_time * max(ego.speed, target))
 
 
-def _hermite(tau: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+def _profiles(tau: FloatArray, d0: float, slope: FloatArray, bend: FloatArray, end: FloatArray) -> FloatArray:
+    """``d = d₀ + h(τ)·(end − d₀) + slope·H₁(τ) + bend·H₂(τ)`` in Horner form, shape of ``tau``.
+
+    ``h = 10τ³ − 15τ⁴ + 6τ⁵``, ``H₁ = τ − 6τ³ + 8τ⁴ − 3τ⁵``, ``H₂ = ½τ² − 3⁄2τ³ + 3⁄2τ⁴ − ½τ⁵``
+    (``slope = d₀′L``, ``bend = d₀″L²``, per row).
+    """
     t2 = tau * tau
-    t3 = t2 * tau
-    t4 = t3 * tau
-    t5 = t4 * tau
-    h = 10 * t3 - 15 * t4 + 6 * t5
-    h1 = tau - 6 * t3 + 8 * t4 - 3 * t5
-    h2 = 0.5 * t2 - 1.5 * t3 + 1.5 * t4 - 0.5 * t5
-    return h, 1.0 - h, h1, h2
+    d = (6.0 * tau - 15.0) * tau
+    d += 10.0
+    d *= t2 * tau
+    d *= end - d0
+    d += d0
+    if np.any(slope):
+        h1 = ((-3.0 * tau + 8.0) * tau - 6.0) * t2
+        h1 += 1.0
+        h1 *= tau
+        d += slope[:, None] * h1
+    if np.any(bend):
+        h2 = ((-0.5 * tau + 1.5) * tau - 1.5) * tau
+        h2 += 0.5
+        h2 *= t2
+        d += bend[:, None] * h2
+    return d
 
 
 def generate_candidates(
@@ -197,15 +211,19 @@ def generate_candidates(
         limits = _consistent_offsets(ref, s_row, bounds, separation=0.5 * vehicle.width)
         lower_row, upper_row = limits.lower_own, limits.upper_own
 
-    tau = np.clip((s_row[None, :] - start.s) / transition[:, None], 0.0, 1.0)
-    h, h0, h1, h2 = _hermite(tau)
-    end = np.where(alpha[:, None] >= 0, alpha[:, None] * bounds.upper, -alpha[:, None] * bounds.lower)
-    d = h * end + start.d * h0 + (start.dd * transition)[:, None] * h1
-    d += (start.ddd * transition**2)[:, None] * h2
-    # Keep inside the bounds, relaxed near the start where the ego itself may lie outside them.
-    lower = lower_row + np.minimum(0.0, start.d - lower_row) * h0
-    upper = upper_row + np.maximum(0.0, start.d - upper_row) * h0
-    np.clip(d, lower, upper, out=d)
+    tau = (s_row[None, :] - start.s) / transition[:, None]
+    np.clip(tau, 0.0, 1.0, out=tau)
+    end = np.where(alpha >= 0, alpha, 0.0)[:, None] * bounds.upper[None, :]
+    end -= np.where(alpha < 0, alpha, 0.0)[:, None] * bounds.lower[None, :]
+    d = _profiles(tau, start.d, start.dd * transition, start.ddd * transition**2, end)
+    # Keep inside the bounds; near the start they widen to take in an ego outside them.
+    if lower_row[0] <= start.d <= upper_row[0]:
+        np.clip(d, lower_row, upper_row, out=d)
+    else:
+        ramp = 1.0 - tau**3 * ((6.0 * tau - 15.0) * tau + 10.0)
+        lower = lower_row + np.minimum(0.0, start.d - lower_row) * ramp
+        upper = upper_row + np.maximum(0.0, start.d - upper_row) * ramp
+        np.clip(d, lower, upper, out=d)
     s = np.broadcast_to(s_row, d.shape)
     xy = origin[None, :, :] + d[:, :, None] * normal[None, :, :]
     if limits is None:
@@ -220,7 +238,7 @@ def generate_candidates(
             transition=transition,
             generator="naive",
         )
-    return _repair(ref, s, d, xy, limits, alpha, transition)
+    return _repair(ref, s_row, d, xy, kappa_row, limits, alpha, transition)
 
 
 def _round_trips(ref: ReferenceLine, s: FloatArray, d: FloatArray) -> NDArray[np.bool_]:
@@ -256,38 +274,49 @@ def _consistent_offsets(
     bounds: LaneBounds,
     *,
     separation: float,
-    levels: int = 32,
+    levels: int = 16,
+    refine: int = 4,
 ) -> OffsetLimits:
     """Find the :class:`OffsetLimits` of each column.
 
     Along a normal, the points whose nearest reference point is the normal's foot form an interval
     around the reference (up to the medial axis, and never beyond the centre of curvature). Testing
-    ``levels`` offsets between 0 and each bound in one TransF-κ call, the interval ends at the last
-    offset before the first that fails — conservative: points beyond it are simply sent through
-    TransF-κ. Cost: TransF-κ on ``2·levels·P`` points, independent of the candidate count.
+    ``levels`` offsets between 0 and each bound in one TransF-κ call, then ``refine`` bisection steps,
+    the interval ends at the last offset known to pass — conservative: points beyond it are simply
+    sent through TransF-κ. Cost: a few TransF-κ calls on ``O(levels·P)`` points, independent of the
+    candidate count.
     """
     frac = np.linspace(0.0, 1.0, levels + 1)[1:]
-    kappa = ref.kappa_at(s_row)
-    out = []
-    for bound, sign in ((bounds.upper, 1.0), (bounds.lower, -1.0)):
-        offsets = frac[:, None] * bound[None, :]  # (levels, P)
-        ok = _round_trips(ref, np.broadcast_to(s_row, offsets.shape).reshape(-1), offsets.reshape(-1))
-        ok = ok.reshape(offsets.shape)
-        first_bad = np.where(ok.all(axis=0), levels, np.argmin(ok, axis=0))
-        last_ok = np.where(first_bad > 0, frac[np.maximum(first_bad - 1, 0)], 0.0) * bound
-        failed_at = frac[np.minimum(first_bad, levels - 1)] * bound
-        other_branch = (first_bad < levels) & (kappa * failed_at < 1.0 - 1.0 / levels)
-        own = np.where(other_branch, sign * np.maximum(sign * last_ok - separation, 0.0), bound)
-        out.append((last_ok, own))
-    (upper_ok, upper_own), (lower_ok, lower_own) = out
+    bound = np.concatenate((bounds.upper, bounds.lower))  # both sides at once: (2P,)
+    s2 = np.concatenate((s_row, s_row))
+    offsets = frac[:, None] * bound[None, :]  # (levels, 2P)
+    ok = _round_trips(ref, np.broadcast_to(s2, offsets.shape).reshape(-1), offsets.reshape(-1))
+    ok = ok.reshape(offsets.shape)
+    first_bad = np.where(ok.all(axis=0), levels, np.argmin(ok, axis=0))
+    last_ok = np.where(first_bad > 0, frac[np.maximum(first_bad - 1, 0)], 0.0) * bound
+    failed_at = frac[np.minimum(first_bad, levels - 1)] * bound
+    cols = np.flatnonzero(first_bad < levels)
+    for _ in range(refine if cols.size else 0):  # bisect between the last pass and the first failure
+        mid = 0.5 * (last_ok[cols] + failed_at[cols])
+        passed = _round_trips(ref, s2[cols], mid)
+        last_ok[cols] = np.where(passed, mid, last_ok[cols])
+        failed_at[cols] = np.where(passed, failed_at[cols], mid)
+    kappa = ref.kappa_at(s2)
+    other_branch = (first_bad < levels) & (kappa * failed_at < 1.0 - 1.0 / levels)
+    sign = np.concatenate((np.ones_like(s_row), -np.ones_like(s_row)))
+    own = np.where(other_branch, sign * np.maximum(sign * last_ok - separation, 0.0), bound)
+    p = s_row.shape[0]
+    upper_ok, lower_ok = last_ok[:p], last_ok[p:]
+    upper_own, lower_own = own[:p], own[p:]
     return OffsetLimits(lower_ok=lower_ok, upper_ok=upper_ok, lower_own=lower_own, upper_own=upper_own)
 
 
 def _repair(
     ref: ReferenceLine,
-    s: FloatArray,
+    s_row: FloatArray,
     d: FloatArray,
     xy: FloatArray,
+    kappa_row: FloatArray,
     limits: OffsetLimits,
     alpha: FloatArray,
     transition: FloatArray,
@@ -297,27 +326,34 @@ def _repair(
     Points outside ``[lower_ok, upper_ok]`` (which excludes every κ·d ≥ 1 point) go to Cartesian
     and back through TransF-κ; the others are TransF-κ's own answer already.
     """
-    bad = (d > limits.upper_ok[None, :]) | (d < limits.lower_ok[None, :])
-    s_new = np.array(s, dtype=float)
+    shape = d.shape
+    bad = (d > limits.upper_ok) | (d < limits.lower_ok)
+    s_new = np.array(np.broadcast_to(s_row, shape))
     d_new = d.copy()
+    kappa = np.array(np.broadcast_to(kappa_row, shape))
+    valid = np.ones(shape, dtype=bool)
+    changed = np.zeros(shape, dtype=bool)
     if bad.any():
         fr = to_frenet(ref, xy[bad])
+        changed[bad] = (np.abs(fr.s - s_new[bad]) > _CONSISTENCY_TOLERANCE) | (
+            np.abs(fr.d - d[bad]) > _CONSISTENCY_TOLERANCE
+        )
         s_new[bad] = fr.s
         d_new[bad] = fr.d
-    # Keep the strict running records of s: the stretch folded behind a repaired point is jumped.
-    before = np.empty_like(s_new)
-    before[:, 0] = -np.inf
-    np.maximum.accumulate(s_new[:, :-1], axis=1, out=before[:, 1:])
-    kappa_new = ref.kappa_at(s_new)
-    valid = (s_new > before) & (kappa_new * d_new < 1.0)
+        kappa[bad] = ref.kappa_at(fr.s)
+        valid[bad] = kappa[bad] * fr.d < 1.0
+        # Keep the strict running records of s: the stretch folded behind a repaired point is jumped.
+        before = np.empty(shape)
+        before[:, 0] = -np.inf
+        np.maximum.accumulate(s_new[:, :-1], axis=1, out=before[:, 1:])
+        valid &= s_new > before
     valid[:, 0] = True
-    changed = (np.abs(s_new - s) > _CONSISTENCY_TOLERANCE) | (np.abs(d_new - d) > _CONSISTENCY_TOLERANCE)
     repaired: NDArray[np.bool_] = np.any(changed | ~valid, axis=1)
     return CandidateSet(
         s=s_new,
         d=d_new,
         xy=xy,
-        kappa=kappa_new,
+        kappa=kappa,
         valid=valid,
         repaired=repaired,
         end_fraction=alpha,

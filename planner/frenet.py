@@ -44,6 +44,8 @@ from planner.reference import FloatArray, ReferenceLine
 #: ties: samples within ``TIE_ABS + TIE_REL·distance`` of the nearest distance count as nearest [m]
 TIE_ABS = 1e-6
 TIE_REL = 1e-4
+#: samples looked ahead at once where more than two samples may tie
+_CROWD = 64
 #: bisector walk steps
 _WALK_STEPS = 6
 
@@ -81,7 +83,9 @@ def nearest_sample(
     ref: ReferenceLine, points: FloatArray, *, tie_abs: float = TIE_ABS, tie_rel: float = TIE_REL
 ) -> NDArray[np.intp]:
     """Index of the nearest sample to each point, the biggest index among (near-)ties (Alg. 1, 1–3)."""
-    dist, idx = ref.tree.query(points, k=2, workers=-1 if points.shape[0] > 20_000 else 1)
+    found = ref.tree.query(points, k=2, workers=-1 if points.shape[0] > 20_000 else 1)
+    dist: FloatArray = np.asarray(found[0], dtype=float)
+    idx: NDArray[np.intp] = np.asarray(found[1], dtype=np.intp)
     limit = dist[:, 0] * (1.0 + tie_rel) + tie_abs
     tie = dist[:, 1] <= limit
     chosen = np.where(tie, np.maximum(idx[:, 0], idx[:, 1]), idx[:, 0])
@@ -90,9 +94,17 @@ def nearest_sample(
     # there, ask for every sample within the limit. Two adjacent samples tie harmlessly elsewhere.
     crowded = tie & ((np.abs(idx[:, 0] - idx[:, 1]) != 1) | (np.abs(ref.kappa[idx[:, 0]]) * dist[:, 0] > 0.5))
     if ref.size > 2 and crowded.any():
+        # Look ahead of the later of the two over a window of samples (ties along one arc are
+        # contiguous); where the window's last sample still ties, ask the tree for all of them.
         rows = np.flatnonzero(crowded)
-        balls = ref.tree.query_ball_point(points[rows], limit[rows])
-        chosen[rows] = [max(b) for b in balls]
+        ahead = np.minimum(chosen[rows, None] + np.arange(_CROWD), ref.size - 1)
+        gap = ref.points[ahead] - points[rows, None, :]
+        within = np.hypot(gap[..., 0], gap[..., 1]) <= limit[rows, None]
+        chosen[rows] = np.max(np.where(within, ahead, -1), axis=1)
+        full = rows[within[:, -1] & (ahead[:, -1] < ref.size - 1)]
+        if full.size:
+            balls = ref.tree.query_ball_point(points[full], limit[full])
+            chosen[full] = [max(b) for b in balls]
     return chosen.astype(np.intp)
 
 

@@ -180,7 +180,7 @@ def build_reference(
     spline = None if pts.shape[0] == 2 else CubicSpline(u_knots, pts, axis=0, bc_type="not-a-knot")
 
     # Arc length s(u) and curvature κ(u) on a fine grid (Simpson per grid interval).
-    resolution = float(np.clip(total_chord / 200_000, 0.01, 0.05))
+    resolution = float(np.clip(total_chord / 40_000, 0.02, 0.1))
     u_fine = _fine_grid(u_knots, resolution)
     if spline is None:
         direction = (pts[1] - pts[0]) / total_chord

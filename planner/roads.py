@@ -57,8 +57,8 @@ def demo_problem() -> PlanningProblem:
     return PlanningProblem(
         reference_line=u_turn(radius=radius, leg=40.0, step=2.0),
         lane=Lane(left_width=radius + 3.0, right_width=3.5),
-        ego=Ego(x=-30.0, y=0.0, heading=0.0, speed=5.0, acceleration=0.0),
+        ego=Ego(x=-15.0, y=0.0, heading=0.0, speed=5.0, acceleration=0.0),
         obstacles=(CircleObstacle(id="cone", center=np.array([radius + 1.0, radius]), radius=1.0),),
         vehicle=Vehicle(),
-        options=Options(horizon_time=8.0, dt=0.1, target_speed=6.0, num_candidates=32),
+        options=Options(horizon_time=8.0, dt=0.1, target_speed=7.0, num_candidates=32),
     )
