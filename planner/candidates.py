@@ -36,6 +36,8 @@ from planner.frenet import offset_basis, to_cartesian, to_frenet
 from planner.problem import Ego, Generator, Lane, Options, Vehicle
 from planner.reference import FloatArray, ReferenceLine, widths_at
 
+#: farthest the ego may be outside the lane, or before the reference's start [m]
+MAX_EGO_OFF_ROAD = 10.0
 #: largest heading difference between ego and reference accepted [rad]
 MAX_EGO_HEADING_ERROR = np.pi / 2 - 1e-3
 #: round-trip tolerance separating consistent points from those TransF-κ attributes elsewhere [m]
@@ -126,6 +128,23 @@ def ego_frenet(ref: ReferenceLine, ego: Ego) -> EgoFrenet:
     return EgoFrenet(s=s, d=d, dd=float(dd), ddd=float(ddd), heading_error=err)
 
 
+def check_ego_on_road(ref: ReferenceLine, lane: Lane, start: EgoFrenet) -> None:
+    """Refuse an ego farther than :data:`MAX_EGO_OFF_ROAD` [m] outside the lane or before the start."""
+    left = float(widths_at(lane.left_width, ref, start.s, field_name="lane.left_width"))
+    right = float(widths_at(lane.right_width, ref, start.s, field_name="lane.right_width"))
+    outside = max(start.d - left, -right - start.d, 0.0)
+    if outside > MAX_EGO_OFF_ROAD:
+        raise InvalidInputError(
+            f"is {outside:.1f} m outside the lane (at most {MAX_EGO_OFF_ROAD:.0f} m is accepted)", field="ego"
+        )
+    if start.s < -MAX_EGO_OFF_ROAD:
+        raise InvalidInputError(
+            f"is {-start.s:.1f} m before the start of the reference line "
+            f"(at most {MAX_EGO_OFF_ROAD:.0f} m is accepted)",
+            field="ego",
+        )
+
+
 def lane_bounds(
     ref: ReferenceLine, lane: Lane, s: FloatArray, *, half_width: float, margin: float
 ) -> LaneBounds:
@@ -190,6 +209,7 @@ def generate_candidates(
     Raises :class:`InvalidInputError` when the ego is at or past the end of the reference line.
     """
     start = ego_frenet(ref, ego) if start is None else start
+    check_ego_on_road(ref, lane, start)
     s_end = min(start.s + path_length(ego, vehicle, options), ref.length)
     if s_end - start.s < 1e-3:
         raise InvalidInputError("the ego is at or past the end of the reference line", field="ego")

@@ -42,6 +42,10 @@ MIN_SPACING = 0.01
 MAX_SAMPLES = 200_000
 #: consecutive input points closer than this are duplicates [m]
 DUPLICATE_TOLERANCE = 1e-6
+#: largest heading change at one input point [rad]; beyond it the line runs back on itself
+MAX_VERTEX_TURN = np.radians(170.0)
+#: largest heading change between adjacent samples of the fitted curve [rad] (a loop or cusp)
+MAX_SAMPLE_TURN = np.radians(45.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,6 +144,17 @@ def clean_polyline(
     cleaned = arr[keep]
     if cleaned.shape[0] < 2:
         raise InvalidReferenceError("needs at least two distinct points", field=field_name)
+    # A vertex where the line runs (nearly) straight back has no driving direction.
+    e = np.diff(cleaned, axis=0)
+    e /= np.linalg.norm(e, axis=1)[:, None]
+    turn = np.arctan2(e[:-1, 0] * e[1:, 1] - e[:-1, 1] * e[1:, 0], np.einsum("ij,ij->i", e[:-1], e[1:]))
+    back = np.flatnonzero(np.abs(turn) > MAX_VERTEX_TURN)
+    if back.size:
+        vertex = int(index[back[0] + 1])
+        raise InvalidReferenceError(
+            f"turns back on itself at point {vertex} ({np.degrees(abs(turn[back[0]])):.0f}° at one point)",
+            field=f"{field_name}.{vertex}",
+        )
     return cleaned, index
 
 
@@ -180,7 +195,7 @@ def build_reference(
     spline = None if pts.shape[0] == 2 else CubicSpline(u_knots, pts, axis=0, bc_type="not-a-knot")
 
     # Arc length s(u) and curvature κ(u) on a fine grid (Simpson per grid interval).
-    resolution = float(np.clip(total_chord / 40_000, 0.02, 0.1))
+    resolution = max(float(np.clip(total_chord / 40_000, 0.02, 0.1)), total_chord / MAX_SAMPLES)
     u_fine = _fine_grid(u_knots, resolution)
     if spline is None:
         direction = (pts[1] - pts[0]) / total_chord
@@ -223,7 +238,7 @@ def build_reference(
         kappa = (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / sp**3
 
     input_s = np.interp(u_knots, u_fine, s_fine)
-    return _assemble(samples, s, heading, kappa, spacing, input_s, index)
+    return _assemble(samples, s, heading, kappa, spacing, input_s, index, field_name=field_name)
 
 
 def _assemble(
@@ -234,13 +249,25 @@ def _assemble(
     spacing: float,
     input_s: FloatArray,
     input_index: NDArray[np.intp],
+    *,
+    field_name: str = "reference_line",
 ) -> ReferenceLine:
     """Derive segment directions and bisector slopes, freeze the arrays, build the k-d tree."""
     seg = np.diff(samples, axis=0)
     seg_len = np.linalg.norm(seg, axis=1)
-    if np.any(seg_len <= 0):
-        raise InvalidReferenceError("the fitted curve has coincident samples", field="reference_line")
+    if not np.all(np.isfinite(samples)) or np.any(seg_len <= 0):
+        raise InvalidReferenceError("the fitted curve has coincident samples", field=field_name)
     seg_dir = seg / seg_len[:, None]
+    if seg_dir.shape[0] > 1:
+        a, b = seg_dir[:-1], seg_dir[1:]
+        turn = np.abs(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], np.einsum("ij,ij->i", a, b)))
+        if np.max(turn) > MAX_SAMPLE_TURN:
+            where = float(s[int(np.argmax(turn)) + 1])
+            raise InvalidReferenceError(
+                f"the smooth curve through the points loops or folds back near s = {where:.1f} m; "
+                "add points or smooth the line there",
+                field=field_name,
+            )
     m = samples.shape[0]
     k_start = np.zeros(m - 1)
     k_end = np.zeros(m - 1)

@@ -174,3 +174,19 @@ def test_commonroad_scenarios_project_and_generate(name: str) -> None:
         assert np.isfinite(cands.xy).all()
         if generator == "transf_kappa":
             assert _broken(ref, cands) == []
+
+
+@pytest.mark.parametrize("x, y", [(50.0, 20.0), (50.0, -25.0), (-30.0, 0.0)])
+def test_ego_far_from_the_road_is_rejected(x: float, y: float) -> None:
+    ref = build_reference(straight(100.0))
+    with pytest.raises(InvalidInputError) as err:
+        generate_candidates(ref, Lane(3.0, 3.0), Ego(x=x, y=y, heading=0.0), Vehicle(), Options())
+    assert err.value.field == "ego"
+
+
+def test_reference_running_back_on_itself_is_rejected_at_its_point() -> None:
+    from planner.errors import InvalidReferenceError
+
+    with pytest.raises(InvalidReferenceError) as err:
+        build_reference([[0.0, 0.0], [10.0, 0.0], [5.0, 0.0]])
+    assert err.value.field == "reference_line.1"
