@@ -1,0 +1,7 @@
+"""One module per resource; :data:`routers` lists them in the order the OpenAPI document shows."""
+
+from fastapi import APIRouter
+
+from app.routes import candidates, coordinates, demo, health
+
+routers: list[APIRouter] = [coordinates.router, candidates.router, demo.router, health.router]

@@ -1,0 +1,71 @@
+"""Candidate lateral paths of a planning request (Algorithm 4 or Algorithm 5 of TransF-κ)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import numpy as np
+from fastapi import APIRouter, Body
+
+from app.errors import ERROR_RESPONSES
+from app.schemas import (
+    Candidate,
+    CandidatePoint,
+    CandidatesDiagnostics,
+    CandidatesResponse,
+    PlanningRequest,
+    demo_request,
+    to_problem,
+)
+from planner.candidates import ego_frenet, generate_candidates
+from planner.reference import build_reference
+
+router = APIRouter(prefix="/v1", tags=["candidates"], responses=ERROR_RESPONSES)
+
+
+@router.post(
+    "/candidates",
+    operation_id="generate_candidates",
+    summary="Candidate paths of a planning request",
+)
+def candidates(
+    body: Annotated[
+        PlanningRequest,
+        Body(
+            openapi_examples={
+                "demo": {
+                    "summary": "The demo U-turn (GET /v1/demo)",
+                    "value": demo_request().model_dump(mode="json"),
+                }
+            }
+        ),
+    ],
+) -> CandidatesResponse:
+    """`options.num_candidates` lateral paths from the ego (the points each keeps) + diagnostics."""
+    problem = to_problem(body)
+    ref = build_reference(problem.reference_line)
+    start = ego_frenet(ref, problem.ego)
+    cs = generate_candidates(
+        ref, problem.lane, problem.ego, problem.vehicle, problem.options, start=start
+    )
+    out: list[Candidate] = []
+    for i in range(cs.count):
+        s, d, xy = cs.points(i)
+        points = [
+            CandidatePoint(s=a, d=b, x=x, y=y)
+            for a, b, (x, y) in zip(s.tolist(), d.tolist(), xy.tolist(), strict=True)
+        ]
+        out.append(Candidate(points=points, repaired=bool(cs.repaired[i])))
+    diagnostics = CandidatesDiagnostics(
+        generated=cs.count,
+        repaired=int(np.count_nonzero(cs.repaired)),
+        generator=cs.generator,
+        reference_samples=ref.size,
+        reference_spacing=ref.spacing,
+        reference_length=ref.length,
+        reference_max_curvature=float(np.max(np.abs(ref.kappa))),
+        ego_s=start.s,
+        ego_d=start.d,
+        kept_points=int(np.count_nonzero(cs.valid)),
+    )
+    return CandidatesResponse(candidates=out, diagnostics=diagnostics)
