@@ -3,11 +3,13 @@
 Cartesian → Frenet (:func:`to_frenet`) for a batch of points ``A``:
 
 1. *Nearest sample, biggest index* (Alg. 1, lines 1–3): the nearest sample ``L_m``; among samples
-   whose distance is within ``tie_tolerance`` of the nearest, the one with the biggest index.
+   whose distance is within ``tie_abs + tie_rel·distance`` of the nearest, the biggest index.
 2. *Bisector choice* (Alg. 1, lines 4–9): of the two segments at ``L_m`` take the one on ``A``'s side
-   of the angular bisector at ``L_m``. A short walk to the neighbouring segment follows where ``A``
-   lies beyond that segment's other bisector (possible where the Voronoi cell of a sample and the
-   bisector wedges differ slightly: far from the curve, or where curvature changes).
+   of the angular bisector at ``L_m``. A walk along the segments follows while ``A`` lies beyond the
+   chosen segment's other bisector, one way only, until a wedge between two bisectors holds it
+   (needed where the Voronoi cell of a sample and the bisector wedges differ: far from the curve,
+   where curvature changes, or where the tie tolerance let a later sample of a flat stretch of the
+   distance function win). Near-ties between distinct stretches stay on the later stretch.
 3. *Transform*. In the frame of segment ``j`` (from ``a = L_j`` with unit direction ``e``, left
    normal ``n``, chord ``ℓ``), ``u = (A − a)·e`` and ``v = (A − a)·n``. The bisectors at the
    segment's ends are the lines ``u = k₀·v`` and ``u = ℓ + k₁·v``.
@@ -46,8 +48,8 @@ TIE_ABS = 1e-6
 TIE_REL = 1e-4
 #: samples looked ahead at once where more than two samples may tie
 _CROWD = 64
-#: bisector walk steps
-_WALK_STEPS = 6
+#: wedge positions within this of [0, 1] are inside (rounding on a bisector)
+_WEDGE_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -164,7 +166,7 @@ def to_frenet(
     # Walk to the neighbour where the point lies beyond the chosen segment's other bisector.
     u, v, t = _wedge(ref, seg, pts)
     rows = np.flatnonzero((t < 0.0) | (t > 1.0))
-    for _ in range(_WALK_STEPS):
+    for _ in range(ref.size):  # each point walks one way only, so this ends within M steps
         if rows.size == 0:
             break
         step = np.where(t[rows] > 1.0, 1, -1)
@@ -185,7 +187,7 @@ def _forward(
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Algorithms 2 and 3: ``s`` from the wedge position; ``folded`` where ``t`` had to be clipped."""
     delta = ref.spacing
-    folded = ~((t >= 0.0) & (t <= 1.0))  # NaN included
+    folded = ~((t >= -_WEDGE_TOLERANCE) & (t <= 1.0 + _WEDGE_TOLERANCE))  # NaN included
     s = np.asarray((seg + np.clip(np.nan_to_num(t, nan=0.5), 0.0, 1.0)) * delta, dtype=np.float64)
     last_seg = ref.seg_len.shape[0] - 1
     ends = np.flatnonzero((seg == 0) | (seg == last_seg))
