@@ -32,10 +32,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.errors import InvalidInputError
-from planner.frenet import offset_basis, to_cartesian, to_frenet
+from planner.frenet import offset_basis, to_frenet
 from planner.problem import Ego, Generator, Lane, Options, Vehicle
 from planner.reference import FloatArray, ReferenceLine, widths_at
 
+#: fraction of the largest empty tangent disc trusted to round-trip without checking
+_LIMIT_SAFETY = 0.97
+#: an empty disc smaller than this fraction of 1/κ is bounded by another stretch of the reference
+_BRANCH_RATIO = 0.9
 #: farthest the ego may be outside the lane, or before the reference's start [m]
 MAX_EGO_OFF_ROAD = 10.0
 #: largest heading difference between ego and reference accepted [rad]
@@ -261,22 +265,12 @@ def generate_candidates(
     return _repair(ref, s_row, d, xy, kappa_row, limits, alpha, transition)
 
 
-def _round_trips(ref: ReferenceLine, s: FloatArray, d: FloatArray) -> NDArray[np.bool_]:
-    """Whether ``(s, d)`` is TransF-κ's own answer for its Cartesian point (and κ·d < 1)."""
-    fr = to_frenet(ref, to_cartesian(ref, s, d))
-    return (
-        (np.abs(fr.s - s) <= _CONSISTENCY_TOLERANCE)
-        & (np.abs(fr.d - d) <= _CONSISTENCY_TOLERANCE)
-        & (ref.kappa_at(s) * d < 1.0)
-    )
-
-
 @dataclass(frozen=True)
 class OffsetLimits:
     """Per column, offsets [m] that TransF-κ maps back to themselves, and the candidates' own bounds.
 
     ``[lower_ok, upper_ok] ∋ 0`` round-trips through TransF-κ (conservatively). Where the round trip
-    first fails because another stretch of the reference is nearer (the lane overlaps the opposite
+    fails because another stretch of the reference is nearer (the lane overlaps the opposite
     leg of a U-turn, κ·d < 1 still), the lane is cut at that medial axis less ``separation``:
     ``[lower_own, upper_own]``; where it fails because κ·d reaches 1, the lane bound stays and
     Algorithm 5 repairs the points beyond.
@@ -289,45 +283,52 @@ class OffsetLimits:
 
 
 def _consistent_offsets(
-    ref: ReferenceLine,
-    s_row: FloatArray,
-    bounds: LaneBounds,
-    *,
-    separation: float,
-    levels: int = 16,
-    refine: int = 4,
+    ref: ReferenceLine, s_row: FloatArray, bounds: LaneBounds, *, separation: float
 ) -> OffsetLimits:
-    """Find the :class:`OffsetLimits` of each column.
+    """Find the :class:`OffsetLimits` of each column from the largest empty tangent discs.
 
-    Along a normal, the points whose nearest reference point is the normal's foot form an interval
-    around the reference (up to the medial axis, and never beyond the centre of curvature). Testing
-    ``levels`` offsets between 0 and each bound in one TransF-κ call, then ``refine`` bisection steps,
-    the interval ends at the last offset known to pass — conservative: points beyond it are simply
-    sent through TransF-κ. Cost: a few TransF-κ calls on ``O(levels·P)`` points, independent of the
-    candidate count.
+    ``x = r + d·n`` keeps ``r`` as its nearest reference point as long as the disc of radius ``d``
+    around it holds no sample. A sample ``L_j`` with ``w = L_j − r`` enters that disc once
+    ``d > ρ_j = |w|² / (2·w·n)`` (for ``w·n > 0``; ``−n`` on the right side), so the offsets that
+    round-trip are ``d < min_j ρ_j`` — ``1/κ`` where the nearest ``L_j`` are the neighbours on the
+    curve, less where another stretch of the reference comes nearer (then the lane is cut there, less
+    ``separation``). Only samples within twice the bound matter; a safety factor keeps the limits
+    conservative against the polygonal wedges and the tie tolerance. Cost: one ball query per column.
     """
-    frac = np.linspace(0.0, 1.0, levels + 1)[1:]
-    bound = np.concatenate((bounds.upper, bounds.lower))  # both sides at once: (2P,)
-    s2 = np.concatenate((s_row, s_row))
-    offsets = frac[:, None] * bound[None, :]  # (levels, 2P)
-    ok = _round_trips(ref, np.broadcast_to(s2, offsets.shape).reshape(-1), offsets.reshape(-1))
-    ok = ok.reshape(offsets.shape)
-    first_bad = np.where(ok.all(axis=0), levels, np.argmin(ok, axis=0))
-    last_ok = np.where(first_bad > 0, frac[np.maximum(first_bad - 1, 0)], 0.0) * bound
-    failed_at = frac[np.minimum(first_bad, levels - 1)] * bound
-    cols = np.flatnonzero(first_bad < levels)
-    for _ in range(refine if cols.size else 0):  # bisect between the last pass and the first failure
-        mid = 0.5 * (last_ok[cols] + failed_at[cols])
-        passed = _round_trips(ref, s2[cols], mid)
-        last_ok[cols] = np.where(passed, mid, last_ok[cols])
-        failed_at[cols] = np.where(passed, failed_at[cols], mid)
-    kappa = ref.kappa_at(s2)
-    other_branch = (first_bad < levels) & (kappa * failed_at < 1.0 - 1.0 / levels)
-    sign = np.concatenate((np.ones_like(s_row), -np.ones_like(s_row)))
-    own = np.where(other_branch, sign * np.maximum(sign * last_ok - separation, 0.0), bound)
-    p = s_row.shape[0]
-    upper_ok, lower_ok = last_ok[:p], last_ok[p:]
-    upper_own, lower_own = own[:p], own[p:]
+    origin, direction = offset_basis(ref, s_row)  # the Frenet line of each column: origin + d·direction
+    stretch = np.linalg.norm(direction, axis=1)  # metres along the line per metre of d
+    normal = direction / stretch[:, None]
+    reach = 2.0 * np.maximum(np.abs(bounds.upper), np.abs(bounds.lower)) + ref.spacing
+    near = ref.tree.query_ball_point(origin, reach)
+    owner = np.repeat(np.arange(s_row.shape[0]), [len(n) for n in near])
+    j = np.fromiter((i for n in near for i in n), dtype=np.intp, count=owner.shape[0])
+    w = ref.points[j] - origin[owner]
+    across = np.einsum("ij,ij->i", w, normal[owner])
+    sq = np.einsum("ij,ij->i", w, w)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = sq / (2.0 * np.abs(across))
+    rho = np.where((np.abs(across) > 1e-9 * np.sqrt(sq)) & (sq > 1e-18), rho, np.inf)
+    radius = {}
+    for side, sign in (("upper", 1.0), ("lower", -1.0)):
+        r = np.full(s_row.shape[0], np.inf)
+        np.minimum.at(r, owner, np.where(sign * across > 0, rho, np.inf))
+        radius[side] = r / stretch
+    kappa = ref.kappa_at(s_row)
+    with np.errstate(divide="ignore"):
+        curl = {
+            "upper": np.where(kappa > 0, 1.0 / kappa, np.inf),
+            "lower": np.where(kappa < 0, -1.0 / kappa, np.inf),
+        }
+    out = {}
+    for side, sign, bound in (("upper", 1.0, bounds.upper), ("lower", -1.0, bounds.lower)):
+        limit = np.minimum(_LIMIT_SAFETY * radius[side], _LIMIT_SAFETY * curl[side])
+        other_branch = radius[side] < _BRANCH_RATIO * curl[side]
+        ok = sign * np.minimum(limit, sign * bound)
+        own = np.where(
+            other_branch & (sign * bound > limit), sign * np.maximum(limit - separation, 0.0), bound
+        )
+        out[side] = (np.where(sign * ok > 0, ok, 0.0), own)
+    (upper_ok, upper_own), (lower_ok, lower_own) = out["upper"], out["lower"]
     return OffsetLimits(lower_ok=lower_ok, upper_ok=upper_ok, lower_own=lower_own, upper_own=upper_own)
 
 
