@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.errors import InvalidInputError
-from planner.frenet import offset_basis, to_frenet
+from planner.frenet import TIE_REL, offset_basis, to_frenet
 from planner.problem import Ego, Generator, Lane, Options, Vehicle
 from planner.reference import FloatArray, ReferenceLine, widths_at
 
@@ -305,31 +305,56 @@ def _consistent_offsets(
     w = ref.points[j] - origin[owner]
     across = np.einsum("ij,ij->i", w, normal[owner])
     sq = np.einsum("ij,ij->i", w, w)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rho = sq / (2.0 * np.abs(across))
-    rho = np.where((np.abs(across) > 1e-9 * np.sqrt(sq)) & (sq > 1e-18), rho, np.inf)
-    radius = {}
-    for side, sign in (("upper", 1.0), ("lower", -1.0)):
-        r = np.full(s_row.shape[0], np.inf)
-        np.minimum.at(r, owner, np.where(sign * across > 0, rho, np.inf))
-        radius[side] = r / stretch
     kappa = ref.kappa_at(s_row)
-    with np.errstate(divide="ignore"):
-        curl = {
-            "upper": np.where(kappa > 0, 1.0 / kappa, np.inf),
-            "lower": np.where(kappa < 0, -1.0 / kappa, np.inf),
-        }
+    apex = _wedge_apex(ref, s_row)
+    # Without ties, L_j enters the disc once d > ρ_j = |w|²/(2·w·n). With TransF-κ's tie tolerance ε
+    # it competes once |x − L_j| ≤ (1 + ε)·d, i.e. c·d² + 2(w·n)·d − |w|² ≥ 0 with c = 2ε + ε²: the
+    # positive root r_j (→ ρ_j as ε → 0) bounds the offsets trusted without a check.
+    c = 2.0 * TIE_REL + TIE_REL**2
     out = {}
     for side, sign, bound in (("upper", 1.0, bounds.upper), ("lower", -1.0, bounds.lower)):
-        limit = np.minimum(_LIMIT_SAFETY * radius[side], _LIMIT_SAFETY * curl[side])
-        other_branch = radius[side] < _BRANCH_RATIO * curl[side]
-        ok = sign * np.minimum(limit, sign * bound)
-        own = np.where(
-            other_branch & (sign * bound > limit), sign * np.maximum(limit - separation, 0.0), bound
-        )
+        a = sign * across
+        root = np.sqrt(a * a + c * sq)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rho_j = np.where(a > 0, sq / (2.0 * a), np.inf)
+            tied_j = np.where(a > 0, sq / (a + root), (root - a) / c)
+        rho = _per_column(rho_j, owner, s_row.shape[0], sq) / stretch
+        tied = _per_column(tied_j, owner, s_row.shape[0], sq) / stretch
+        with np.errstate(divide="ignore"):
+            curl = np.where(sign * kappa > 0, 1.0 / np.abs(kappa), np.inf)  # centre of curvature
+        ok = sign * np.minimum(_LIMIT_SAFETY * np.minimum(np.minimum(tied, curl), apex[side]), sign * bound)
+        # The disc is bounded by another stretch of the reference, not by the curve bending round.
+        other_branch = rho < _BRANCH_RATIO * curl
+        cut = _LIMIT_SAFETY * rho
+        own = np.where(other_branch & (sign * bound > cut), sign * np.maximum(cut - separation, 0.0), bound)
         out[side] = (np.where(sign * ok > 0, ok, 0.0), own)
     (upper_ok, upper_own), (lower_ok, lower_own) = out["upper"], out["lower"]
     return OffsetLimits(lower_ok=lower_ok, upper_ok=upper_ok, lower_own=lower_own, upper_own=upper_own)
+
+
+def _wedge_apex(ref: ReferenceLine, s_row: FloatArray, *, around: int = 2) -> dict[str, FloatArray]:
+    """Per column and side, the nearest apex [m] of the bisector wedges within ``around`` segments.
+
+    Beyond a wedge's apex (where its two bisectors meet, ``ℓ + (k₁ − k₀)·v = 0``) TransF-κ folds; the
+    polygon's apexes may come nearer than the smooth curve's 1/κ where curvature changes fast.
+    """
+    n_seg = ref.seg_len.shape[0]
+    slope = ref.k_end - ref.k_start
+    inner = np.zeros(n_seg, dtype=bool)
+    inner[1:-1] = True
+    with np.errstate(divide="ignore"):
+        left = np.where(inner & (slope < 0), -ref.seg_len / slope, np.inf)
+        right = np.where(inner & (slope > 0), ref.seg_len / slope, np.inf)
+    seg = np.clip(np.floor(s_row / ref.spacing), 0, n_seg - 1).astype(np.intp)
+    window = np.clip(seg[:, None] + np.arange(-around, around + 1), 0, n_seg - 1)
+    return {"upper": left[window].min(axis=1), "lower": right[window].min(axis=1)}
+
+
+def _per_column(values: FloatArray, owner: NDArray[np.intp], columns: int, sq: FloatArray) -> FloatArray:
+    """Smallest of ``values`` per column (``inf`` where a column has none); the point itself is skipped."""
+    out = np.full(columns, np.inf)
+    np.minimum.at(out, owner, np.where(sq > 1e-18, values, np.inf))
+    return out
 
 
 def _repair(
