@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.errors import InvalidInputError
-from planner.frenet import TIE_REL, offset_basis, to_frenet
+from planner.frenet import offset_basis, to_frenet
 from planner.problem import Ego, Generator, Lane, Options, Vehicle
 from planner.reference import FloatArray, ReferenceLine, widths_at
 
@@ -292,8 +292,9 @@ def _consistent_offsets(
     ``d > ρ_j = |w|² / (2·w·n)`` (for ``w·n > 0``; ``−n`` on the right side), so the offsets that
     round-trip are ``d < min_j ρ_j`` — ``1/κ`` where the nearest ``L_j`` are the neighbours on the
     curve, less where another stretch of the reference comes nearer (then the lane is cut there, less
-    ``separation``). Only samples within twice the bound matter; a safety factor keeps the limits
-    conservative against the polygonal wedges and the tie tolerance. Cost: one ball query per column.
+    ``separation``). Only samples within twice the bound matter. The trusted offsets also stay short of
+    the polygon's wedge apexes nearby (where TransF-κ folds) and of 1/κ, with a safety factor for
+    the tie tolerance; points beyond are simply checked. Cost: one ball query per column.
     """
     origin, direction = offset_basis(ref, s_row)  # the Frenet line of each column: origin + d·direction
     stretch = np.linalg.norm(direction, axis=1)  # metres along the line per metre of d
@@ -307,22 +308,15 @@ def _consistent_offsets(
     sq = np.einsum("ij,ij->i", w, w)
     kappa = ref.kappa_at(s_row)
     apex = _wedge_apex(ref, s_row)
-    # Without ties, L_j enters the disc once d > ρ_j = |w|²/(2·w·n). With TransF-κ's tie tolerance ε
-    # it competes once |x − L_j| ≤ (1 + ε)·d, i.e. c·d² + 2(w·n)·d − |w|² ≥ 0 with c = 2ε + ε²: the
-    # positive root r_j (→ ρ_j as ε → 0) bounds the offsets trusted without a check.
-    c = 2.0 * TIE_REL + TIE_REL**2
     out = {}
     for side, sign, bound in (("upper", 1.0, bounds.upper), ("lower", -1.0, bounds.lower)):
         a = sign * across
-        root = np.sqrt(a * a + c * sq)
         with np.errstate(divide="ignore", invalid="ignore"):
             rho_j = np.where(a > 0, sq / (2.0 * a), np.inf)
-            tied_j = np.where(a > 0, sq / (a + root), (root - a) / c)
         rho = _per_column(rho_j, owner, s_row.shape[0], sq) / stretch
-        tied = _per_column(tied_j, owner, s_row.shape[0], sq) / stretch
         with np.errstate(divide="ignore"):
             curl = np.where(sign * kappa > 0, 1.0 / np.abs(kappa), np.inf)  # centre of curvature
-        ok = sign * np.minimum(_LIMIT_SAFETY * np.minimum(np.minimum(tied, curl), apex[side]), sign * bound)
+        ok = sign * np.minimum(_LIMIT_SAFETY * np.minimum(np.minimum(rho, curl), apex[side]), sign * bound)
         # The disc is bounded by another stretch of the reference, not by the curve bending round.
         other_branch = rho < _BRANCH_RATIO * curl
         cut = _LIMIT_SAFETY * rho
@@ -332,7 +326,7 @@ def _consistent_offsets(
     return OffsetLimits(lower_ok=lower_ok, upper_ok=upper_ok, lower_own=lower_own, upper_own=upper_own)
 
 
-def _wedge_apex(ref: ReferenceLine, s_row: FloatArray, *, around: int = 2) -> dict[str, FloatArray]:
+def _wedge_apex(ref: ReferenceLine, s_row: FloatArray, *, around: int = 8) -> dict[str, FloatArray]:
     """Per column and side, the nearest apex [m] of the bisector wedges within ``around`` segments.
 
     Beyond a wedge's apex (where its two bisectors meet, ``ℓ + (k₁ − k₀)·v = 0``) TransF-κ folds; the
