@@ -1,0 +1,537 @@
+"""Lateral piecewise-jerk QP: constraints hold, references are tracked, bounds push the path,
+infeasibility is a status, misuse is a ValueError, set-ups are reused, and another QP backend agrees."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import pytest
+import qpsolvers
+import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from solvers.lateral_qp import (
+    LateralQPProblem,
+    LateralQPResult,
+    LateralQPSolver,
+    LateralWeights,
+    build_qp_matrices,
+    objective,
+    solve_lateral_qp,
+)
+from solvers.result import SolveInfo, SolverStatus
+
+TOL = 1e-4
+
+
+def _smoothstep(t: np.ndarray) -> np.ndarray:
+    t = np.clip(t, 0.0, 1.0)
+    return t**3 * (10 - 15 * t + 6 * t**2)
+
+
+def _lane_change(n: int = 200, ds: float = 0.5, **kw: Any) -> LateralQPProblem:
+    """A 1.5 m lane change between s = 20 m and s = 60 m inside ±2 m."""
+    s = np.arange(n) * ds
+    args: dict[str, Any] = {
+        "ds": ds,
+        "d_lower": np.full(n, -2.0),
+        "d_upper": np.full(n, 2.0),
+        "d_ref": 1.5 * _smoothstep((s - 20.0) / 40.0),
+        "jerk_max": 0.5,
+    }
+    args.update(kw)
+    return LateralQPProblem(**args)
+
+
+def _violations(problem: LateralQPProblem, result: LateralQPResult) -> dict[str, float]:
+    """Largest violation of each constraint group (0 when satisfied)."""
+    d, dd, ddd, ds = result.d, result.dd, result.ddd, problem.ds
+    inf = np.inf
+    n = problem.n
+
+    def box(x: np.ndarray, lo: np.ndarray | None, hi: np.ndarray | None) -> float:
+        lo = np.full(n, -inf) if lo is None else lo
+        hi = np.full(n, inf) if hi is None else hi
+        return float(max(np.max(lo[1:] - x[1:]), np.max(x[1:] - hi[1:]), 0.0))
+
+    return {
+        "initial": float(max(abs(d[0] - problem.d0), abs(dd[0] - problem.dd0), abs(ddd[0] - problem.ddd0))),
+        "d_bounds": box(d, problem.d_lower, problem.d_upper),
+        "dd_bounds": box(dd, problem.dd_lower, problem.dd_upper),
+        "ddd_bounds": box(ddd, problem.ddd_lower, problem.ddd_upper),
+        "jerk": float(max(np.max(np.abs(np.diff(ddd)) - ds * problem.jerk_max), 0.0)),
+        "slope_integration": float(np.max(np.abs(dd[1:] - dd[:-1] - ds * (ddd[:-1] + ddd[1:]) / 2))),
+        "offset_integration": float(
+            np.max(np.abs(d[1:] - d[:-1] - ds * dd[:-1] - ds**2 / 3 * ddd[:-1] - ds**2 / 6 * ddd[1:]))
+        ),
+    }
+
+
+def _assert_feasible(problem: LateralQPProblem, result: LateralQPResult, tol: float = TOL) -> None:
+    bad = {k: v for k, v in _violations(problem, result).items() if v > tol}
+    assert not bad, f"constraints violated: {bad} ({result.info})"
+
+
+# --------------------------------------------------------------------------------------------------------
+# Result type
+
+
+def test_status_values_and_ok() -> None:
+    assert [s.value for s in SolverStatus] == [
+        "solved", "solved_inaccurate", "infeasible", "max_iterations", "time_limit", "failed",
+    ]  # fmt: skip
+    assert SolverStatus("infeasible") is SolverStatus.INFEASIBLE
+    for status in SolverStatus:
+        info = SolveInfo(status=status, iterations=3, solve_time_ms=0.1, objective=None, message="")
+        assert info.ok == (status in (SolverStatus.SOLVED, SolverStatus.SOLVED_INACCURATE))
+
+
+# --------------------------------------------------------------------------------------------------------
+# Solutions
+
+
+def _active_cases() -> dict[str, tuple[LateralQPProblem, str]]:
+    """Problems whose solution presses each kind of bound, with the group that must be active."""
+    n, ds = 120, 0.5
+    s = np.arange(n) * ds
+    return {
+        "offset": (
+            _lane_change(
+                n=n, d_lower=np.where((s > 20) & (s < 30), 0.8, -2.0), d_ref=np.zeros(n), jerk_max=0.1
+            ),
+            "d",
+        ),
+        "slope": (
+            _lane_change(
+                n=n, d_upper=np.full(n, 1.0), dd_lower=np.full(n, -0.05), dd_upper=np.full(n, 0.05), d0=0.5
+            ),
+            "dd",
+        ),
+        "curvature": (
+            _lane_change(n=n, ddd_lower=np.full(n, -0.01), ddd_upper=np.full(n, 0.01), d0=-0.5),
+            "ddd",
+        ),
+        "jerk": (_lane_change(n=n, jerk_max=0.002, d0=-0.5), "jerk"),
+        "all": (
+            LateralQPProblem(
+                ds=ds,
+                d_lower=np.full(n, -1.0),
+                d_upper=np.where((s > 15) & (s < 35), 0.4, 1.5),  # pushes down mid-way
+                d_ref=np.full(n, 1.2),  # wants to sit above the squeeze
+                jerk_max=0.01,
+                d0=0.3,
+                dd0=0.08,  # heading up, must turn round
+                ddd0=-0.01,
+                dd_lower=np.full(n, -0.1),
+                dd_upper=np.full(n, 0.1),
+                ddd_lower=np.full(n, -0.02),
+                ddd_upper=np.full(n, 0.02),
+                weights=LateralWeights(offset=0.0),
+            ),
+            "d",
+        ),
+    }
+
+
+def _slack(problem: LateralQPProblem, result: LateralQPResult, group: str) -> float:
+    """Smallest distance of the solution to a bound of ``group`` (knots 1 … n−1)."""
+    if group == "jerk":
+        return float(np.min(problem.ds * problem.jerk_max - np.abs(np.diff(result.ddd))))
+    value = {"d": result.d, "dd": result.dd, "ddd": result.ddd}[group][1:]
+    lower = getattr(problem, f"{group}_lower")[1:]
+    upper = getattr(problem, f"{group}_upper")[1:]
+    return float(np.min(np.minimum(value - lower, upper - value)))
+
+
+@pytest.mark.parametrize("case", ["offset", "slope", "curvature", "jerk", "all"])
+def test_solution_satisfies_all_constraints_with_active_bounds(case: str) -> None:
+    problem, group = _active_cases()[case]
+    solver = LateralQPSolver()
+    result = solver.solve(problem)
+    assert result.info.status is SolverStatus.SOLVED, result.info
+    assert result.ok and result.info.objective is not None
+    _assert_feasible(problem, result)
+    # the bound really is active, so the test checks something
+    assert abs(_slack(problem, result, group)) <= 1e-6
+    assert np.all(np.isfinite(result.x)) and result.x.shape == (3 * problem.n,)
+
+
+def test_tracks_a_feasible_smooth_reference() -> None:
+    """Without the pull to the centre the path follows the lane change; the smoothing terms cost a few
+    centimetres at most (length scale ≈ 3 m against a 40 m manoeuvre) and vanish with a heavy ``ref``."""
+    problem = _lane_change(weights=LateralWeights(offset=0.0))
+    result = LateralQPSolver().solve(problem)
+    assert result.info.status is SolverStatus.SOLVED
+    _assert_feasible(problem, result)
+    assert np.max(np.abs(result.d - problem.d_ref)) < 0.06
+    assert result.d[-1] == pytest.approx(1.5, abs=1e-3)
+
+    heavy = replace(problem, weights=LateralWeights(ref=100.0, offset=0.0))
+    tight = LateralQPSolver().solve(heavy)
+    assert tight.info.status is SolverStatus.SOLVED
+    _assert_feasible(heavy, tight)
+    assert np.max(np.abs(tight.d - problem.d_ref)) < 0.005
+
+
+def test_default_offset_weight_shrinks_towards_the_reference_line() -> None:
+    """Documented behaviour: on a long constant stretch d → d_ref·w_ref/(w_ref + w_offset)."""
+    n = 200
+    problem = _lane_change(n=n, d_ref=np.full(n, 1.0), d0=1.0)
+    result = solve_lateral_qp(problem)
+    assert result.ok
+    middle = result.d[n // 4 : 3 * n // 4]
+    np.testing.assert_allclose(middle, 1.0 / 1.1, atol=1e-3)
+
+
+def test_step_in_lower_bound_is_respected_smoothly() -> None:
+    """An obstacle on the right between s = 40 m and 60 m: d ≥ 1 there; the path anticipates it."""
+    n, ds = 200, 0.5
+    s = np.arange(n) * ds
+    blocked = (s >= 40.0) & (s <= 60.0)
+    problem = LateralQPProblem(
+        ds=ds,
+        d_lower=np.where(blocked, 1.0, -2.0),
+        d_upper=np.full(n, 2.0),
+        d_ref=np.zeros(n),
+        jerk_max=0.1,
+    )
+    result = LateralQPSolver().solve(problem)
+    assert result.info.status is SolverStatus.SOLVED
+    _assert_feasible(problem, result)
+    assert np.min(result.d[blocked]) >= 1.0 - TOL
+    # smooth: jerk within its bound (checked above), bounded curvature, and it rises *before* the step
+    assert np.max(np.abs(result.ddd)) < 0.1
+    assert result.d[np.searchsorted(s, 35.0)] > 0.3
+    # and comes back afterwards
+    assert abs(result.d[-1]) < 0.05
+
+
+def test_objective_matches_the_matrices() -> None:
+    problem = _lane_change(n=60, end_d=1.0, d0=-0.3, dd0=0.02)
+    result = LateralQPSolver().solve(problem)
+    P, q, _, _, _ = build_qp_matrices(problem)
+    x = result.x
+    full = P + sp.triu(P, 1).T
+    constant = problem.weights.ref * np.sum(problem.d_ref**2) + problem.weights.end_target * 1.0**2
+    assert 0.5 * x @ (full @ x) + q @ x + constant == pytest.approx(result.info.objective, rel=1e-9)
+    assert objective(problem, result.d, result.dd, result.ddd) == pytest.approx(result.info.objective)
+
+
+def test_matrices_are_in_osqp_form() -> None:
+    problem = _lane_change(n=10)
+    P, q, A, lower, upper = build_qp_matrices(problem)
+    assert P.format == "csc" and A.format == "csc"
+    assert lower[0] == upper[0] == problem.d0  # knot 0 pinned
+    assert sp.tril(P, -1).nnz == 0
+    assert P.shape == (30, 30) and A.shape == (6 * 10 - 3, 30)
+    assert q.shape == (30,) and lower.shape == upper.shape == (57,)
+    assert np.all(lower <= upper)
+
+
+# --------------------------------------------------------------------------------------------------------
+# Failures are statuses
+
+
+def _unreachable(n: int = 60) -> LateralQPProblem:
+    """The ego starts 3 m to the left of a ±0.5 m corridor; a 0.05 1/m² jerk limit cannot bring it in."""
+    return LateralQPProblem(
+        ds=0.5,
+        d_lower=np.full(n, -0.5),
+        d_upper=np.full(n, 0.5),
+        d_ref=np.zeros(n),
+        jerk_max=0.05,
+        d0=3.0,
+    )
+
+
+def test_unreachable_corridor_is_infeasible_not_an_exception() -> None:
+    solver = LateralQPSolver()
+    problem = _unreachable()
+    result = solver.solve(problem)
+    assert result.info.status is SolverStatus.INFEASIBLE
+    assert not result.ok and result.info.objective is None
+    assert "not a solution" in result.info.message
+    for arr in (result.d, result.dd, result.ddd, result.x):
+        assert np.all(np.isfinite(arr))
+    # the fallback is the reference clipped to the bounds, starting at the ego
+    assert result.d[0] == 3.0
+    np.testing.assert_allclose(result.d[1:], 0.0)
+    # the same workspace recovers on a feasible problem afterwards
+    relaxed = replace(problem, d_upper=np.full(problem.n, 4.0))
+    again = solver.solve(relaxed)
+    assert again.info.status is SolverStatus.SOLVED
+    _assert_feasible(relaxed, again)
+    assert solver.setup_count == 1
+
+
+def test_iteration_limit_is_a_status_with_a_finite_path() -> None:
+    problem = _lane_change()
+    result = LateralQPSolver(refine_steps=0).solve(problem, max_iter=1)
+    assert result.info.status is SolverStatus.MAX_ITERATIONS
+    assert not result.ok and result.info.iterations == 1 and result.info.objective is None
+    assert np.all(np.isfinite(result.x))
+    assert np.all(result.d[1:] >= problem.d_lower[1:]) and np.all(result.d[1:] <= problem.d_upper[1:])
+
+
+def test_refinement_turns_a_cut_short_iterate_into_the_optimum() -> None:
+    problem = _active_cases()["offset"][0]
+    reference = LateralQPSolver().solve(problem)
+    rescued = LateralQPSolver().solve(problem, max_iter=50)
+    assert "maximum iterations" in rescued.info.message
+    assert rescued.info.status is SolverStatus.SOLVED and rescued.info.iterations == 50
+    assert "refined" in rescued.info.message
+    _assert_feasible(problem, rescued, tol=1e-9)
+    np.testing.assert_allclose(rescued.x, reference.x, atol=1e-7)
+
+
+def test_a_bound_pressed_over_a_stretch_is_refined_to_the_exact_optimum() -> None:
+    """OSQP's polishing guesses the active set wrongly here (the optimum touches the bound at a few knots
+    and sags by < 0.1 mm in between); the active-set refinement must still end at a KKT point."""
+    problem = _active_cases()["all"][0]
+    result = LateralQPSolver().solve(problem)
+    assert result.info.status is SolverStatus.SOLVED
+    assert "refined" in result.info.message or "polished" in result.info.message
+    _assert_feasible(problem, result, tol=1e-9)
+
+
+# --------------------------------------------------------------------------------------------------------
+# Misuse raises
+
+
+def _kwargs(n: int = 10) -> dict[str, Any]:
+    return {
+        "ds": 0.5,
+        "d_lower": np.full(n, -1.0),
+        "d_upper": np.full(n, 1.0),
+        "d_ref": np.zeros(n),
+        "jerk_max": 1.0,
+    }
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"d_upper": np.ones(9)}, "d_upper"),
+        ({"d_ref": np.zeros(2), "d_lower": -np.ones(2), "d_upper": np.ones(2)}, "at least 3"),
+        ({"d_ref": np.zeros((10, 1))}, "d_ref"),
+        ({"d_ref": np.r_[np.zeros(9), np.nan]}, "d_ref"),
+        ({"d_ref": np.r_[np.zeros(9), np.inf]}, "d_ref"),
+        ({"d_lower": np.r_[np.full(9, -1.0), np.nan]}, "d_lower"),
+        ({"d_lower": np.r_[np.full(9, -1.0), np.inf]}, "d_lower"),
+        ({"d_lower": np.r_[np.full(5, -1.0), np.full(5, 2.0)]}, "d_lower > d_upper at knot 5"),
+        ({"dd_lower": np.full(9, -1.0)}, "dd_lower"),
+        ({"dd_lower": np.full(10, 0.2), "dd_upper": np.full(10, 0.1)}, "dd_lower > dd_upper"),
+        ({"ddd_upper": np.full(10, -np.inf)}, "ddd_upper"),
+        ({"ds": 0.0}, "ds"),
+        ({"ds": np.nan}, "ds"),
+        ({"jerk_max": 0.0}, "jerk_max"),
+        ({"jerk_max": np.nan}, "jerk_max"),
+        ({"d0": np.nan}, "d0"),
+        ({"dd0": np.inf}, "dd0"),
+        ({"end_d": np.nan}, "end_d"),
+        ({"d_ref": ["a"] * 10}, "d_ref"),
+    ],
+)
+def test_misuse_raises_value_error(change: dict[str, Any], match: str) -> None:
+    args = _kwargs()
+    args.update(change)
+    with pytest.raises(ValueError, match=match):
+        LateralQPProblem(**args)
+
+
+def test_bad_weights_and_limits_raise() -> None:
+    with pytest.raises(ValueError, match=r"weights\.jerk"):
+        LateralWeights(jerk=-1.0)
+    with pytest.raises(ValueError, match=r"weights\.ref"):
+        LateralWeights(ref=np.nan)
+    problem = LateralQPProblem(**_kwargs())
+    solver = LateralQPSolver()
+    with pytest.raises(ValueError, match="max_iter"):
+        solver.solve(problem, max_iter=0)
+    with pytest.raises(ValueError, match="time_limit_s"):
+        solver.solve(problem, time_limit_s=-1.0)
+    with pytest.raises(ValueError, match="problem"):
+        solver.solve(_kwargs())  # type: ignore[arg-type]
+
+
+def test_infinite_bounds_and_jerk_are_allowed() -> None:
+    n = 30
+    problem = LateralQPProblem(
+        ds=0.5,
+        d_lower=np.full(n, -np.inf),
+        d_upper=np.full(n, np.inf),
+        d_ref=np.linspace(0.0, 1.0, n),
+        jerk_max=np.inf,
+        dd_upper=np.full(n, np.inf),
+    )
+    result = LateralQPSolver().solve(problem)
+    assert result.info.status is SolverStatus.SOLVED
+    _assert_feasible(problem, result)
+
+
+def test_problem_arrays_are_read_only_copies() -> None:
+    d_ref = np.zeros(10)
+    problem = LateralQPProblem(**{**_kwargs(), "d_ref": d_ref})
+    d_ref[0] = 5.0
+    assert problem.d_ref[0] == 0.0
+    with pytest.raises(ValueError):
+        problem.d_ref[0] = 1.0
+
+
+# --------------------------------------------------------------------------------------------------------
+# Reuse and warm start
+
+
+def test_warm_start_reuses_the_setup_and_needs_no_more_iterations() -> None:
+    solver = LateralQPSolver()
+    first = solver.solve(_lane_change(d0=0.1))
+    s = np.arange(200) * 0.5
+    changed = _lane_change(d0=0.12, dd0=0.005, d_ref=1.5 * _smoothstep((s - 21.0) / 40.0))
+    second = solver.solve(changed)
+    assert first.info.status is second.info.status is SolverStatus.SOLVED
+    assert solver.setup_count == 1
+    assert second.info.iterations <= first.info.iterations
+    _assert_feasible(changed, second)
+
+    solver.solve(_lane_change(n=100))  # another size: a second set-up
+    assert solver.setup_count == 2
+    solver.solve(_lane_change(weights=LateralWeights(jerk=500.0)))  # other weights: a third
+    assert solver.setup_count == 3
+    solver.solve(_lane_change(end_d=1.0))  # an end target changes P: a fourth
+    assert solver.setup_count == 4
+    solver.solve(_lane_change(d0=0.3))  # back to the first key: reused
+    assert solver.setup_count == 4
+
+
+def test_setups_beyond_the_cache_are_dropped_least_recently_used_first() -> None:
+    solver = LateralQPSolver(max_cached=2)
+    for n in (20, 30, 20, 40, 20, 30):
+        assert solver.solve(_lane_change(n=n)).ok
+    # 20 (set up), 30 (set up), 20 (reused), 40 (set up, drops 30), 20 (reused), 30 (set up again)
+    assert solver.setup_count == 4
+
+
+# --------------------------------------------------------------------------------------------------------
+# Cross-check against another QP backend
+
+
+def _other_backend() -> str | None:
+    preferred = ["clarabel", "proxqp", "piqp", "highs", "daqp", "cvxopt", "quadprog", "scs"]
+    available = [s for s in preferred if s in qpsolvers.available_solvers]
+    return available[0] if available else None
+
+
+def _solve_with(
+    backend: str, P: Any, q: np.ndarray, A: Any, lower: np.ndarray, upper: np.ndarray
+) -> np.ndarray:
+    """Solve ``min ½xᵀPx + qᵀx, l ≤ Ax ≤ u`` (``P`` upper triangle) through ``qpsolvers``."""
+    nx = P.shape[0]
+    full = (P + sp.triu(P, 1).T).tocsc()
+    box = slice(0, nx)  # the first rows of A are the identity
+    rows = np.arange(nx, A.shape[0])
+    equal = rows[lower[rows] == upper[rows]]
+    ranged = rows[lower[rows] < upper[rows]]
+    A_rng = A[ranged]
+    finite_u, finite_l = np.isfinite(upper[ranged]), np.isfinite(lower[ranged])
+    G = sp.vstack([A_rng[finite_u], -A_rng[finite_l]]).tocsc()
+    h = np.concatenate([upper[ranged][finite_u], -lower[ranged][finite_l]])
+    x = qpsolvers.solve_qp(
+        full, q, G=G, h=h, A=A[equal].tocsc(), b=lower[equal], lb=lower[box], ub=upper[box], solver=backend
+    )
+    assert x is not None, f"{backend} failed"
+    return np.asarray(x)
+
+
+@pytest.mark.skipif(
+    _other_backend() is None, reason="no QP backend besides OSQP installed (dev extra: clarabel)"
+)
+@pytest.mark.parametrize("case", ["lane_change", "offset", "slope", "curvature", "jerk", "all"])
+def test_agrees_with_another_backend(case: str) -> None:
+    """The same QP (``build_qp_matrices``) through another solver gives the same path."""
+    if case == "lane_change":
+        problem = _lane_change(n=120, d0=0.2, dd0=-0.01, end_d=1.4)
+    else:
+        problem = _active_cases()[case][0]
+    result = LateralQPSolver().solve(problem)
+    assert result.info.status is SolverStatus.SOLVED
+    backend = _other_backend()
+    assert backend is not None
+    n = problem.n
+    x = _solve_with(backend, *build_qp_matrices(problem))
+    np.testing.assert_allclose(result.d, x[:n], atol=1e-3)
+    np.testing.assert_allclose(result.dd, x[n : 2 * n], atol=1e-3)
+    assert objective(problem, x[:n], x[n : 2 * n], x[2 * n :]) == pytest.approx(
+        result.info.objective, rel=1e-4
+    )
+
+
+# --------------------------------------------------------------------------------------------------------
+# Property: feasible problems solve and satisfy their constraints
+
+
+def _feasible_path(
+    rng: np.random.Generator, n: int, ds: float, jerk_max: float, start: tuple[float, float, float]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A piecewise-jerk path (exact integration, ``|jerk| ≤ jerk_max``) that follows a random smooth target
+    of a few metres: each jerk is a clipped stable feedback (triple pole at ``−a``, ``a·Δs ≤ 0.3``)."""
+    s = np.arange(n) * ds
+    target = sum(
+        rng.uniform(-1.0, 1.0) * np.sin(2 * np.pi * s / rng.uniform(20.0, 80.0) + rng.uniform(0, 2 * np.pi))
+        for _ in range(3)
+    )
+    a = min(0.3 / ds, rng.uniform(0.1, 0.5))
+    d, dd, ddd = np.empty(n), np.empty(n), np.empty(n)
+    d[0], dd[0], ddd[0] = start
+    for i in range(n - 1):
+        j = -(a**3) * (d[i] - target[i]) - 3 * a**2 * dd[i] - 3 * a * ddd[i]
+        j = float(np.clip(j, -jerk_max, jerk_max))
+        ddd[i + 1] = ddd[i] + ds * j
+        dd[i + 1] = dd[i] + ds * ddd[i] + ds**2 * j / 2
+        d[i + 1] = d[i] + ds * dd[i] + ds**2 * ddd[i] / 2 + ds**3 * j / 6
+    return d, dd, ddd
+
+
+@st.composite
+def feasible_problems(draw: st.DrawFn) -> LateralQPProblem:
+    """Bounds drawn around a feasible path of a few metres, and a smooth reference that may leave them."""
+    n = draw(st.integers(min_value=5, max_value=150))
+    ds = draw(st.floats(min_value=0.2, max_value=1.0))
+    jerk_max = draw(st.floats(min_value=0.01, max_value=1.0))
+    seed = draw(st.integers(min_value=0, max_value=2**32 - 1))
+    rng = np.random.default_rng(seed)
+    start = (rng.uniform(-1.0, 1.0), rng.uniform(-0.1, 0.1), rng.uniform(-0.02, 0.02))
+    d, dd, ddd = _feasible_path(rng, n, ds, jerk_max, start)
+    s = np.arange(n) * ds
+    kwargs: dict[str, Any] = {}
+    if draw(st.booleans()):
+        kwargs["dd_lower"], kwargs["dd_upper"] = (
+            dd - rng.uniform(0.01, 0.2, n),
+            dd + rng.uniform(0.01, 0.2, n),
+        )
+    if draw(st.booleans()):
+        kwargs["ddd_lower"] = ddd - rng.uniform(0.005, 0.05, n)
+        kwargs["ddd_upper"] = ddd + rng.uniform(0.005, 0.05, n)
+    amplitude, wavelength, phase = rng.uniform(0, 2), rng.uniform(10, 60), rng.uniform(0, 2 * np.pi)
+    return LateralQPProblem(
+        ds=ds,
+        d_lower=d - rng.uniform(0.02, 1.5, n),
+        d_upper=d + rng.uniform(0.02, 1.5, n),
+        d_ref=d + amplitude * np.sin(2 * np.pi * s / wavelength + phase),
+        jerk_max=jerk_max,
+        d0=start[0],
+        dd0=start[1],
+        ddd0=start[2],
+        end_d=draw(st.none() | st.floats(min_value=-2.0, max_value=2.0)),
+        **kwargs,
+    )
+
+
+@settings(max_examples=30, deadline=None)
+@given(feasible_problems())
+def test_property_feasible_problems_solve_within_their_constraints(problem: LateralQPProblem) -> None:
+    result = solve_lateral_qp(problem)
+    assert result.info.status is SolverStatus.SOLVED, result.info
+    _assert_feasible(problem, result)
