@@ -40,6 +40,8 @@ from planner.reference import FloatArray, ReferenceLine, widths_at
 _LIMIT_SAFETY = 0.97
 #: an empty disc smaller than this fraction of 1/κ is bounded by another stretch of the reference
 _BRANCH_RATIO = 0.9
+#: time before full deceleration is reached when braking from cruise (jerk-limited ramp) [s]
+BRAKE_DELAY = 1.5
 #: farthest the ego may be outside the lane, or before the reference's start [m]
 MAX_EGO_OFF_ROAD = 10.0
 #: largest heading difference between ego and reference accepted [rad]
@@ -214,8 +216,11 @@ def generate_candidates(
     """
     start = ego_frenet(ref, ego) if start is None else start
     check_ego_on_road(ref, lane, start)
-    s_end = min(start.s + path_length(ego, vehicle, options), ref.length)
-    if s_end - start.s < 1e-3:
+    # Up to the reference's end, or past it along the end ray by the braking distance (a vehicle
+    # too fast to stop before the end still needs a path to brake on).
+    braking = ego.speed**2 / (2.0 * vehicle.max_deceleration) + ego.speed * BRAKE_DELAY + vehicle.length
+    s_end = min(start.s + path_length(ego, vehicle, options), max(ref.length, start.s + braking))
+    if ref.length - start.s < 1e-3:
         raise InvalidInputError("the ego is at or past the end of the reference line", field="ego")
     n, p = options.num_candidates, options.num_points
     rng = np.random.default_rng(options.seed)
