@@ -3,7 +3,9 @@
 This is the only module that knows both pydantic and the planner's dataclasses: a request is
 validated here (types, finiteness, ranges, lengths, cross-field consistency) and turned into a
 :class:`planner.problem.PlanningProblem` by :func:`to_problem`; :func:`from_problem` goes the other
-way (the demo endpoint). Every limit is declared on its field, so it shows in the OpenAPI schema.
+way (the demo endpoint); :func:`candidate_data` and :func:`plan_data` turn the planner's answers into
+the JSON data of :class:`CandidatesResponse` and :class:`PlanResponse`. Every limit is declared on its
+field, so it shows in the OpenAPI schema.
 
 Scalars are strict: a number must be a JSON number (``"5"`` and ``true`` are refused), an integer a
 JSON integer, a flag a JSON boolean. Unknown fields are refused so that a misspelt option is an
@@ -14,7 +16,7 @@ error rather than silently ignored. Units: metres [m], seconds [s], radians [rad
 from __future__ import annotations
 
 from functools import cache
-from typing import Annotated, Any
+from typing import Annotated, Any, get_args
 
 import numpy as np
 from pydantic import (
@@ -28,10 +30,15 @@ from pydantic import (
     field_validator,
     model_validator,
 )
+from pydantic.json_schema import SkipJsonSchema
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from planner import problem as pp
+from planner.candidates import CandidateSet
+from planner.pipeline import PlanResult
+from planner.pipeline import Status as PlanStatus
 from planner.roads import demo_problem
+from solvers.result import SolverStatus
 
 # --------------------------------------------------------------------------------------------------
 # Limits
@@ -561,6 +568,162 @@ class CandidatesResponse(_Response):
 
     candidates: list[Candidate]
     diagnostics: CandidatesDiagnostics
+
+
+def require_finite(what: str, *arrays: Any) -> None:
+    """Raise ``ValueError`` (a bug of the server: answered 500) if any of ``arrays`` is not finite."""
+    for array in arrays:
+        if not np.isfinite(np.asarray(array, dtype=float)).all():
+            raise ValueError(f"{what} holds a non-finite number")
+
+
+def candidate_data(cs: CandidateSet) -> list[dict[str, Any]]:
+    """The kept points of every candidate of ``cs`` in driving order, as the JSON data of
+    ``list[Candidate]`` (plain lists and dicts: no model per point; finiteness checked on the arrays).
+    """
+    keep = cs.valid
+    require_finite("a candidate", cs.s[keep], cs.d[keep], cs.xy[keep])
+    out: list[dict[str, Any]] = []
+    for i in range(cs.count):
+        s, d, xy = cs.points(i)
+        points = [
+            {"s": a, "d": b, "x": x, "y": y}
+            for a, b, x, y in zip(s.tolist(), d.tolist(), xy[:, 0].tolist(), xy[:, 1].tolist(), strict=True)
+        ]
+        out.append({"points": points, "repaired": bool(cs.repaired[i])})
+    return out
+
+
+# --------------------------------------------------------------------------------------------------
+# Plan
+# --------------------------------------------------------------------------------------------------
+
+
+class TrajectoryPoint(_Response):
+    """One sample of the planned motion of the vehicle's centre."""
+
+    t: float = Field(description="Time from now [s]; the first point is the ego at t = 0.")
+    x: float = Field(description="Centre x [m].")
+    y: float = Field(description="Centre y [m].")
+    heading: float = Field(
+        description="Heading, counter-clockwise from +x [rad]; continuous along the trajectory (not "
+        "wrapped to [-π, π])."
+    )
+    curvature: float = Field(description="Path curvature, positive to the left [1/m].")
+    v: float = Field(description="Speed [m/s], never negative.")
+    a: float = Field(description="Acceleration along the path [m/s²].")
+    s: float = Field(description="Arc length on the reference [m].")
+    d: float = Field(description="Lateral offset from the reference, positive to the left [m].")
+
+
+class CandidateCounts(_Response):
+    """How many candidate paths were generated, repaired by TransF-κ, and clear of static obstacles."""
+
+    generated: int = Field(description="Candidates generated.")
+    repaired: int = Field(description="Candidates with repaired or jumped points.")
+    collision_free: int = Field(description="Candidates clear of every static obstacle.")
+
+
+class LateralSolveInfo(_Response):
+    """How the lateral QP (offset d along the path) went."""
+
+    status: SolverStatus
+    iterations: int = Field(description="Iterations of the QP solver (0 when it did not run).")
+    solve_time_ms: float = Field(description="Wall time of the solve [ms].")
+
+
+class SpeedSolveInfo(_Response):
+    """How the speed profile went (`failed` when it did not run because the lateral QP failed)."""
+
+    status: SolverStatus
+    solve_time_ms: float = Field(description="Wall time of the solve [ms].")
+
+
+class PlanTiming(_Response):
+    """Wall time of the planner's stages [ms]; 0 for a stage that did not run."""
+
+    total: float = Field(description="All stages.")
+    reference: float = Field(description="Reference line and the ego's Frenet state.")
+    candidates: float = Field(description="Candidate paths, their collision check and the choice.")
+    lateral: float = Field(description="Lateral bounds and the lateral QP.")
+    speed: float = Field(description="Speed profile.")
+
+
+class PlanDiagnostics(_Response):
+    """What each stage of the planner did."""
+
+    candidates: CandidateCounts
+    lateral_qp: LateralSolveInfo
+    speed: SpeedSolveInfo
+    timing_ms: PlanTiming
+
+
+class PlanResponse(_Response):
+    """A planned trajectory, how it came about and, on request, the candidates behind it."""
+
+    status: PlanStatus = Field(
+        description="`ok`: planned; `stopped`: the road ahead is blocked and the trajectory stops "
+        "before it; `fallback`: a stage failed or its result broke a check, and the trajectory brakes "
+        "along the best path known."
+    )
+    message: str = Field(description="Why, in words.")
+    trajectory: list[TrajectoryPoint] = Field(
+        description="Samples at t = 0 (the ego), `options.dt`, 2·`options.dt`, … up to "
+        "`options.horizon_time`."
+    )
+    candidates: list[Candidate] | SkipJsonSchema[None] = Field(
+        None,
+        description="The candidate paths (as `/v1/candidates` answers them); the key is present only "
+        "when `options.return_candidates` is true.",
+    )
+    diagnostics: PlanDiagnostics
+
+
+_TRAJECTORY_FIELDS = tuple(TrajectoryPoint.model_fields)
+_TIMING_FIELDS = tuple(PlanTiming.model_fields)
+
+
+def plan_data(result: PlanResult) -> dict[str, Any]:
+    """The answer to :func:`planner.pipeline.plan`'s ``result`` as the JSON data of
+    :class:`PlanResponse` (plain lists and dicts built from the arrays, ready for
+    ``pydantic_core.to_json``; ``candidates`` only when the planner returned them).
+
+    A non-finite number or an unknown solver status is a bug and raises ``ValueError``.
+    """
+    if result.status not in get_args(PlanStatus):
+        raise ValueError(f"unknown plan status {result.status!r}")
+    traj = result.trajectory
+    columns = [np.asarray(getattr(traj, name), dtype=float) for name in _TRAJECTORY_FIELDS]
+    require_finite("the trajectory", *columns)
+    rows = zip(*(c.tolist() for c in columns), strict=True)
+    diag = result.diagnostics
+    timing = [float(diag.timing_ms.get(name, 0.0)) for name in _TIMING_FIELDS]
+    require_finite("the diagnostics", diag.lateral_qp.solve_time_ms, diag.speed.solve_time_ms, timing)
+    data: dict[str, Any] = {
+        "status": result.status,
+        "message": str(result.message),
+        "trajectory": [dict(zip(_TRAJECTORY_FIELDS, row, strict=True)) for row in rows],
+    }
+    if result.candidates is not None:
+        data["candidates"] = candidate_data(result.candidates)
+    data["diagnostics"] = {
+        "candidates": {
+            "generated": int(diag.candidates.generated),
+            "repaired": int(diag.candidates.repaired),
+            "collision_free": int(diag.candidates.collision_free),
+        },
+        "lateral_qp": {
+            "status": SolverStatus(diag.lateral_qp.status).value,
+            "iterations": int(diag.lateral_qp.iterations),
+            "solve_time_ms": float(diag.lateral_qp.solve_time_ms),
+        },
+        "speed": {
+            "status": SolverStatus(diag.speed.status).value,
+            "solve_time_ms": float(diag.speed.solve_time_ms),
+        },
+        "timing_ms": dict(zip(_TIMING_FIELDS, timing, strict=True)),
+    }
+    return data
 
 
 @cache

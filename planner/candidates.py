@@ -107,12 +107,13 @@ class CandidateSet:
         return self.s[i, keep], self.d[i, keep], self.xy[i, keep]
 
 
-def ego_frenet(ref: ReferenceLine, ego: Ego) -> EgoFrenet:
+def ego_frenet(ref: ReferenceLine, ego: Ego, *, max_curvature: float = np.inf) -> EgoFrenet:
     """The ego's Frenet state by TransF-κ.
 
-    With heading error ``Δθ = θ − θ_r(s)``: ``d′ = (1 − κd)·tan Δθ`` and, when the ego's path
-    curvature ``κ_x`` is known,
-    ``d″ = −(κ′d + κd′)·tan Δθ + (1 − κd)/cos²Δθ · (κ_x(1 − κd)/cos Δθ − κ)``; otherwise ``d″ = 0``.
+    With heading error ``Δθ = θ − θ_r(s)``: ``d′ = (1 − κd)·tan Δθ`` and, for the ego's path
+    curvature ``κ_x``, ``d″ = −(κ′d + κd′)·tan Δθ + (1 − κd)/cos²Δθ · (κ_x(1 − κd)/cos Δθ − κ)``.
+    When ``κ_x`` is not given, the ego is taken to follow the road's curvature at its offset,
+    ``κ/(1 − κd)``, limited to ``±max_curvature`` [1/m] (what it can be driving at its speed).
     """
     fr = to_frenet(ref, [[ego.x, ego.y]])
     s, d = float(fr.s[0]), float(fr.d[0])
@@ -125,12 +126,19 @@ def ego_frenet(ref: ReferenceLine, ego: Ego) -> EgoFrenet:
     kappa = float(ref.kappa_at(s))
     one = 1.0 - kappa * d
     dd = one * np.tan(err)
-    ddd = 0.0
     if ego.curvature is not None:
-        dk = float(np.gradient(ref.kappa, ref.s)[np.clip(int(s / ref.spacing), 0, ref.size - 1)])
-        ddd = -(dk * d + kappa * dd) * np.tan(err) + one / np.cos(err) ** 2 * (
-            ego.curvature * one / np.cos(err) - kappa
-        )
+        curvature = ego.curvature
+    else:
+        following = kappa / one if one > 1e-6 else 0.0
+        curvature = float(np.clip(following, -max_curvature, max_curvature))
+    dk = (
+        float(np.gradient(ref.kappa, ref.s)[np.clip(int(s / ref.spacing), 0, ref.size - 1)])
+        if ref.size > 2
+        else 0.0
+    )
+    ddd = -(dk * d + kappa * dd) * np.tan(err) + one / np.cos(err) ** 2 * (
+        curvature * one / np.cos(err) - kappa
+    )
     return EgoFrenet(s=s, d=d, dd=float(dd), ddd=float(ddd), heading_error=err)
 
 
@@ -171,9 +179,12 @@ def lane_bounds(
 
 def path_length(ego: Ego, vehicle: Vehicle, options: Options) -> float:
     """Arc length the candidates cover [m]: the distance at the faster of current and target speed
-    over the horizon, at least ``min_path_length``."""
+    over the horizon and then a gentle braking distance from it, at least ``min_path_length``."""
     target = vehicle.max_speed if options.target_speed is None else options.target_speed
-    return max(options.min_path_length, options.horizon_time * max(ego.speed, target))
+    fastest = max(ego.speed, target)
+    # the speed profile keeps room to stop at half the vehicle's deceleration beyond its horizon
+    braking = fastest**2 / vehicle.max_deceleration + fastest * BRAKE_DELAY
+    return max(options.min_path_length, options.horizon_time * fastest + braking)
 
 
 def _profiles(tau: FloatArray, d0: float, slope: FloatArray, bend: FloatArray, end: FloatArray) -> FloatArray:

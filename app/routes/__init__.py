@@ -2,6 +2,12 @@
 
 from fastapi import APIRouter
 
-from app.routes import candidates, coordinates, demo, health
+from app.routes import candidates, coordinates, demo, health, plan
 
-routers: list[APIRouter] = [coordinates.router, candidates.router, demo.router, health.router]
+routers: list[APIRouter] = [
+    coordinates.router,
+    candidates.router,
+    plan.router,
+    demo.router,
+    health.router,
+]

@@ -9,11 +9,10 @@ from fastapi import APIRouter, Body
 
 from app.errors import ERROR_RESPONSES
 from app.schemas import (
-    Candidate,
-    CandidatePoint,
     CandidatesDiagnostics,
     CandidatesResponse,
     PlanningRequest,
+    candidate_data,
     demo_request,
     to_problem,
 )
@@ -48,14 +47,6 @@ def candidates(
     cs = generate_candidates(
         ref, problem.lane, problem.ego, problem.vehicle, problem.options, start=start
     )
-    out: list[Candidate] = []
-    for i in range(cs.count):
-        s, d, xy = cs.points(i)
-        points = [
-            CandidatePoint(s=a, d=b, x=x, y=y)
-            for a, b, (x, y) in zip(s.tolist(), d.tolist(), xy.tolist(), strict=True)
-        ]
-        out.append(Candidate(points=points, repaired=bool(cs.repaired[i])))
     diagnostics = CandidatesDiagnostics(
         generated=cs.count,
         repaired=int(np.count_nonzero(cs.repaired)),
@@ -68,4 +59,4 @@ def candidates(
         ego_d=start.d,
         kept_points=int(np.count_nonzero(cs.valid)),
     )
-    return CandidatesResponse(candidates=out, diagnostics=diagnostics)
+    return CandidatesResponse(candidates=candidate_data(cs), diagnostics=diagnostics)

@@ -15,5 +15,5 @@ router = APIRouter(tags=["demo"])
     summary="The demo planning request (a U-turn with a wide inner side)",
 )
 def get_demo() -> PlanningRequest:
-    """A planning request to post as is to `/v1/candidates`."""
+    """A planning request to post as is to `/v1/plan` or `/v1/candidates`."""
     return demo_request()

@@ -65,11 +65,11 @@ def test_cartesian_frenet_round_trip_on_the_u_turn(
 
 
 def test_candidates_transf_kappa(client: TestClient, demo: dict[str, Any]) -> None:
-    demo["options"]["num_candidates"] = 12
+    demo["options"]["num_candidates"] = 32
     r = client.post("/v1/candidates", json=demo)
     assert r.status_code == 200, r.text
     out = r.json()
-    assert len(out["candidates"]) == 12
+    assert len(out["candidates"]) == 32
     for candidate in out["candidates"]:
         s = [p["s"] for p in candidate["points"]]
         assert len(s) >= 2
@@ -77,7 +77,7 @@ def test_candidates_transf_kappa(client: TestClient, demo: dict[str, Any]) -> No
         assert all(math.isfinite(p[k]) for p in candidate["points"] for k in "sdxy")
         assert isinstance(candidate["repaired"], bool)
     diag = out["diagnostics"]
-    assert diag["generated"] == 12
+    assert diag["generated"] == 32
     assert diag["generator"] == "transf_kappa"
     assert diag["repaired"] == sum(c["repaired"] for c in out["candidates"])
     assert diag["repaired"] > 0  # the demo's wide inner side folds naive candidates

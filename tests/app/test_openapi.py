@@ -49,6 +49,7 @@ def test_operations_are_tagged_and_named() -> None:
         ("/v1/frenet", "post"): "to_frenet",
         ("/v1/cartesian", "post"): "to_cartesian",
         ("/v1/candidates", "post"): "generate_candidates",
+        ("/v1/plan", "post"): "plan_trajectory",
         ("/v1/demo", "get"): "get_demo_request",
     }
     for op in ops.values():

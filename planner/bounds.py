@@ -1,0 +1,109 @@
+"""Lateral bounds per knot: lane, obstacles on their decided side, and the κ·d bound.
+
+For knots ``s_i`` [m] along the reference, the vehicle's centre offset must keep
+``lower_i ≤ d_i ≤ upper_i``:
+
+* lane: left and right widths less half the vehicle width and a margin;
+* obstacles (Frenet boxes ``[s_min, s_max] × [d_min, d_max]``): where the footprint's extent along
+  ``s`` overlaps the box, ``d ≥ d_max + w/2 + margin`` when passing on its left, ``d ≤ d_min − w/2 − margin``
+  on its right;
+* κ·d in its vehicle-feasible form: an offset path has curvature ``κ/(1 − κ·d)``, so requiring
+  ``1 − κ_i·d_i ≥ |κ_i|/κ_max`` (linear in ``d``) keeps ``κ·d < 1`` and the path drivable; where the
+  reference is tighter than ``1/κ_max`` it forces the path outwards.
+
+Where ``lower > upper`` the road is blocked: :attr:`LateralBounds.blocked` is the first such knot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.candidates import lane_bounds
+from planner.collision import FrenetBoxes
+from planner.problem import Lane, Vehicle
+from planner.reference import FloatArray, ReferenceLine
+
+
+@dataclass(frozen=True)
+class LateralBounds:
+    """Bounds on ``d`` [m] at knots ``s`` [m]; ``blocked``: the first knot with ``lower > upper``, or None."""
+
+    s: FloatArray
+    lower: FloatArray
+    upper: FloatArray
+    blocked: int | None
+
+
+def pass_left(
+    boxes: FrenetBoxes,
+    s: FloatArray,
+    d: FloatArray,
+    valid: NDArray[np.bool_],
+    lower: FloatArray,
+    upper: FloatArray,
+) -> NDArray[np.bool_]:
+    """Decide per obstacle whether a path ``d(s)`` passes on its left (True) or right (False).
+
+    The side on which the path's mean offset over the obstacle's ``s``-range lies; where the path has
+    no point there, the side with more room between the obstacle and the lane bounds.
+    """
+    out = np.zeros(boxes.count, dtype=bool)
+    for k in range(boxes.count):  # one decision per obstacle, not per point
+        near = valid & (s >= boxes.s_min[k]) & (s <= boxes.s_max[k])
+        centre = 0.5 * (boxes.d_min[k] + boxes.d_max[k])
+        if near.any():
+            out[k] = float(np.mean(d[near])) >= centre
+        else:
+            span = (s >= boxes.s_min[k]) & (s <= boxes.s_max[k])
+            room_left = float(np.min(upper[span], initial=np.inf)) - boxes.d_max[k]
+            room_right = boxes.d_min[k] - float(np.max(lower[span], initial=-np.inf))
+            out[k] = room_left >= room_right
+    return out
+
+
+def lateral_bounds(
+    ref: ReferenceLine,
+    lane: Lane,
+    s: FloatArray,
+    vehicle: Vehicle,
+    *,
+    margin: float,
+    boxes: FrenetBoxes,
+    left_of: NDArray[np.bool_],
+    heading_error: FloatArray | None = None,
+) -> LateralBounds:
+    """Bounds at knots ``s`` [m]; ``left_of[k]`` says on which side obstacle ``k`` is passed.
+
+    With the path's expected heading error to the reference ``θ`` [rad] per knot, the footprint's
+    lateral half-extent is ``L/2·|sin θ| + W/2·cos θ`` rather than ``W/2``.
+    """
+    theta = np.zeros_like(s) if heading_error is None else np.asarray(heading_error)
+    half_extent = 0.5 * vehicle.length * np.abs(np.sin(theta)) + 0.5 * vehicle.width * np.cos(theta)
+    straight = lane_bounds(ref, lane, s, half_width=0.5 * vehicle.width, margin=margin)
+    turned = lane_bounds(ref, lane, s, half_width=0.0, margin=margin)
+    lower, upper = turned.lower + half_extent, turned.upper - half_extent
+    # Where the turned footprint does not fit, fall back to the footprint aligned with the lane.
+    tight = lower > upper
+    lower, upper = np.where(tight, straight.lower, lower), np.where(tight, straight.upper, upper)
+    half_l, half_w = 0.5 * vehicle.length, 0.5 * vehicle.width
+    if boxes.count:
+        overlaps = (s[:, None] + half_l + margin >= boxes.s_min) & (
+            s[:, None] - half_l - margin <= boxes.s_max
+        )
+        left_edge = np.where(overlaps & left_of, boxes.d_max + half_w + margin, -np.inf)
+        right_edge = np.where(overlaps & ~left_of, boxes.d_min - half_w - margin, np.inf)
+        lower = np.maximum(lower, left_edge.max(axis=1))
+        upper = np.minimum(upper, right_edge.min(axis=1))
+    kappa = ref.kappa_at(s)
+    # 1 − κ d ≥ |κ|/κ_max  ⇔  κ d ≤ 1 − |κ|/κ_max
+    room = 1.0 - np.abs(kappa) / vehicle.max_curvature
+    with np.errstate(divide="ignore", invalid="ignore"):
+        limit = room / kappa
+    upper = np.where(kappa > 1e-9, np.minimum(upper, limit), upper)
+    lower = np.where(kappa < -1e-9, np.maximum(lower, limit), lower)
+    blocked_at = np.flatnonzero(lower > upper)
+    blocked = int(blocked_at[0]) if blocked_at.size else None
+    return LateralBounds(s=s, lower=lower, upper=upper, blocked=blocked)

@@ -1,0 +1,137 @@
+"""Obstacles and the vehicle's footprint: exact Cartesian geometry (shapely) and Frenet boxes.
+
+* Exact: an obstacle is a shapely polygon (a circle is buffered into one; a dynamic obstacle is its
+  ``length × width`` box at the predicted state, interpolated in time). The vehicle's footprint is the
+  ``length × width`` rectangle centred on the trajectory point and turned by its heading.
+* Frenet boxes, for fast decisions over many candidates: every obstacle outline, densified, is mapped
+  by TransF-κ, and its ``[s_min, s_max] × [d_min, d_max]`` box is what candidates and lateral bounds
+  are checked against. A vehicle at ``(s, d)`` with heading error ``θ`` to the reference covers
+  ``|Δs| ≤ L/2·cos θ + W/2·|sin θ|`` and ``|Δd| ≤ L/2·|sin θ| + W/2·cos θ`` around it.
+
+A dynamic obstacle whose predicted states move less than :data:`STATIC_MOTION` over the horizon is
+treated as static (a parked car given as a prediction); the others are left to the speed profile.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from numpy.typing import NDArray
+from shapely.geometry.base import BaseGeometry
+
+from planner.frenet import to_frenet
+from planner.problem import CircleObstacle, DynamicObstacle, Obstacle, PolygonObstacle, Vehicle
+from planner.reference import FloatArray, ReferenceLine
+
+#: a dynamic obstacle moving less than this over the horizon is static [m]
+STATIC_MOTION = 0.5
+#: outline points of obstacles are at most this far apart before projection [m]
+OUTLINE_STEP = 0.25
+
+
+def box_corners(x: FloatArray, y: FloatArray, heading: FloatArray, length: float, width: float) -> FloatArray:
+    """Corners of ``length × width`` [m] rectangles centred at ``(x, y)`` turned by ``heading`` [rad].
+
+    Returns shape ``(*x.shape, 4, 2)``, counter-clockwise from the rear right corner.
+    """
+    c, s = np.cos(heading)[..., None], np.sin(heading)[..., None]
+    lx = np.array([-0.5, 0.5, 0.5, -0.5]) * length
+    ly = np.array([-0.5, -0.5, 0.5, 0.5]) * width
+    cx = np.asarray(x)[..., None] + lx * c - ly * s
+    cy = np.asarray(y)[..., None] + lx * s + ly * c
+    return np.stack((cx, cy), axis=-1)
+
+
+def footprints(x: FloatArray, y: FloatArray, heading: FloatArray, vehicle: Vehicle) -> NDArray[np.object_]:
+    """The vehicle's footprint polygons at each trajectory point (shapely, vectorised)."""
+    corners = box_corners(np.asarray(x), np.asarray(y), np.asarray(heading), vehicle.length, vehicle.width)
+    return np.asarray(shapely.polygons(corners))
+
+
+def prediction_at(obstacle: DynamicObstacle, t: FloatArray) -> FloatArray:
+    """Predicted ``x, y, heading`` at times ``t`` [s], shape (len(t), 3): linear in time, held at the ends."""
+    pred = obstacle.prediction
+    x = np.interp(t, pred[:, 0], pred[:, 1])
+    y = np.interp(t, pred[:, 0], pred[:, 2])
+    h = np.interp(t, pred[:, 0], np.unwrap(pred[:, 3]))
+    return np.column_stack((x, y, h))
+
+
+def is_static(obstacle: Obstacle, horizon: float) -> bool:
+    """Whether an obstacle stays put (within :data:`STATIC_MOTION`) over ``[0, horizon]`` [s]."""
+    if not isinstance(obstacle, DynamicObstacle):
+        return True
+    pred = obstacle.prediction
+    inside = pred[(pred[:, 0] >= 0.0) & (pred[:, 0] <= horizon)]
+    states = np.vstack((prediction_at(obstacle, np.array([0.0, horizon]))[:, :2], inside[:, 1:3]))
+    return bool(np.max(np.linalg.norm(states - states[0], axis=1)) < STATIC_MOTION)
+
+
+def obstacle_shape(obstacle: Obstacle, t: float = 0.0) -> BaseGeometry:
+    """The obstacle's outline as a shapely polygon (a dynamic one at time ``t`` [s])."""
+    if isinstance(obstacle, PolygonObstacle):
+        poly = shapely.Polygon(obstacle.polygon)
+        return poly if poly.is_valid else poly.buffer(0)
+    if isinstance(obstacle, CircleObstacle):
+        return shapely.Point(obstacle.center).buffer(obstacle.radius, quad_segs=8)
+    state = prediction_at(obstacle, np.array([t]))[0]
+    corners = box_corners(state[0], state[1], state[2], obstacle.length, obstacle.width)
+    return shapely.Polygon(corners)
+
+
+@dataclass(frozen=True)
+class FrenetBoxes:
+    """Obstacles' boxes in the Frenet frame, arrays of shape (K,) [m], in the order of ``ids``."""
+
+    ids: tuple[str, ...]
+    s_min: FloatArray
+    s_max: FloatArray
+    d_min: FloatArray
+    d_max: FloatArray
+
+    @property
+    def count(self) -> int:
+        return len(self.ids)
+
+
+def frenet_boxes(ref: ReferenceLine, shapes: list[tuple[str, BaseGeometry]]) -> FrenetBoxes:
+    """Map every outline (densified to :data:`OUTLINE_STEP`) with TransF-κ in one call; box each."""
+    if not shapes:
+        empty = np.zeros(0)
+        return FrenetBoxes((), empty, empty, empty, empty)
+    outlines = [shapely.segmentize(shape.exterior, OUTLINE_STEP) for _, shape in shapes]
+    coords = [np.asarray(shapely.get_coordinates(o)) for o in outlines]
+    sizes = np.array([c.shape[0] for c in coords])
+    starts = np.concatenate(([0], np.cumsum(sizes)[:-1]))
+    fr = to_frenet(ref, np.vstack(coords))
+    return FrenetBoxes(
+        ids=tuple(i for i, _ in shapes),
+        s_min=np.minimum.reduceat(fr.s, starts),
+        s_max=np.maximum.reduceat(fr.s, starts),
+        d_min=np.minimum.reduceat(fr.d, starts),
+        d_max=np.maximum.reduceat(fr.d, starts),
+    )
+
+
+def vehicle_extent(
+    heading_error: FloatArray, vehicle: Vehicle, margin: float
+) -> tuple[FloatArray, FloatArray]:
+    """Half-extents ``(along s, along d)`` [m] of the footprint turned by ``heading_error`` [rad]."""
+    c, s = np.abs(np.cos(heading_error)), np.abs(np.sin(heading_error))
+    half_l, half_w = 0.5 * vehicle.length, 0.5 * vehicle.width
+    return half_l * c + half_w * s + margin, half_l * s + half_w * c + margin
+
+
+def box_hits(
+    boxes: FrenetBoxes, s: FloatArray, d: FloatArray, half_s: FloatArray, half_d: FloatArray
+) -> NDArray[np.bool_]:
+    """Whether the footprint box at each point overlaps any obstacle box; shape of ``s``."""
+    if boxes.count == 0:
+        return np.zeros(np.shape(s), dtype=bool)
+    s_, d_ = np.asarray(s)[..., None], np.asarray(d)[..., None]
+    hs, hd = np.asarray(half_s)[..., None], np.asarray(half_d)[..., None]
+    hit = (s_ + hs >= boxes.s_min) & (s_ - hs <= boxes.s_max)
+    hit &= (d_ + hd >= boxes.d_min) & (d_ - hd <= boxes.d_max)
+    return np.asarray(hit.any(axis=-1))

@@ -1,0 +1,469 @@
+"""One plan, as its stages: reference → candidates → decision → bounds → lateral QP → speed → trajectory.
+
+Each stage is a function of the ones before; :func:`plan` only wires them and times them. A planning
+failure is a status (``stopped`` when the road ahead is blocked, ``fallback`` when a stage fails or its
+result breaks a check), always with a trajectory that brakes safely along the best path known.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import minimum_filter1d
+from shapely.geometry.base import BaseGeometry
+
+from planner.bounds import LateralBounds, lateral_bounds, pass_left
+from planner.candidates import CandidateSet, EgoFrenet, check_ego_on_road, ego_frenet, generate_candidates
+from planner.collision import (
+    FrenetBoxes,
+    box_corners,
+    box_hits,
+    frenet_boxes,
+    is_static,
+    obstacle_shape,
+    prediction_at,
+    vehicle_extent,
+)
+from planner.frenet import to_frenet
+from planner.problem import DynamicObstacle, PlanningProblem
+from planner.reference import FloatArray, ReferenceLine, build_reference
+from planner.trajectory import Path, Trajectory, frenet_path, polyline_path, sample
+from planner.validation import trajectory_violations
+from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
+from solvers.result import SolveInfo, SolverStatus
+from solvers.speed import SpeedProblem, SpeedResult, SpeedSolver, braking_profile, integrate_jerk
+
+Status = Literal["ok", "stopped", "fallback"]
+
+#: knot spacing of the lateral QP [m]
+KNOT_SPACING = 0.5
+#: most knots of the lateral QP
+MAX_KNOTS = 240
+#: lateral margin kept to obstacles beyond the footprint [m]
+OBSTACLE_MARGIN = 0.3
+#: gap kept behind a blocked point or a dynamic obstacle, beyond half the vehicle length [m]
+STOP_GAP = 1.0
+#: bounds handed to the QP are tightened by this, covering its tolerance [m]
+QP_SLACK = 0.01
+#: wall-clock budget of one lateral QP solve [s]
+QP_TIME_LIMIT = 0.04
+#: jerk allowed when braking for a blocked road or in the fallback [m/s³]
+EMERGENCY_JERK = 30.0
+#: time headway kept to a moving obstacle ahead: the vehicle may not be where it was this long ago [s]
+HEADWAY = 1.0
+#: jerk bound of the lateral profile [1/m²]
+LATERAL_JERK = 0.5
+#: jerk bound of the speed profile [m/s³]
+SPEED_JERK = 8.0
+#: share of the lateral-acceleration limit the speed profile plans with (its linearisation's tolerance)
+LIMIT_MARGIN = 0.9
+#: the speed limit at a point also holds this far either side of it [m]
+LIMIT_REACH = 2.0
+#: most steps of the speed profile
+SPEED_STEPS = 80
+
+
+@dataclass(frozen=True)
+class CandidateStats:
+    generated: int
+    repaired: int
+    collision_free: int
+
+
+@dataclass(frozen=True)
+class PlanDiagnostics:
+    """What each stage did: candidate counts, solver infos, and wall time per stage [ms]."""
+
+    candidates: CandidateStats
+    lateral_qp: SolveInfo
+    speed: SolveInfo
+    timing_ms: dict[str, float]
+    reference_samples: int
+    knots: int
+    chosen_candidate: int | None
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """The answer: status, why, the trajectory, and (optionally) the candidates behind it."""
+
+    status: Status
+    message: str
+    trajectory: Trajectory
+    candidates: CandidateSet | None
+    diagnostics: PlanDiagnostics
+    violations: tuple[str, ...] = field(default=())
+
+
+class _Timer:
+    def __init__(self) -> None:
+        self.ms: dict[str, float] = {}
+
+    @contextmanager
+    def stage(self, name: str) -> Iterator[None]:
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.ms[name] = self.ms.get(name, 0.0) + 1e3 * (time.perf_counter() - t0)
+
+
+#: lateral QP outcomes whose path is used (an unfinished iterate is clipped to the bounds; the
+#: trajectory checks decide whether it is good enough)
+_USABLE = {
+    SolverStatus.SOLVED,
+    SolverStatus.SOLVED_INACCURATE,
+    SolverStatus.MAX_ITERATIONS,
+    SolverStatus.TIME_LIMIT,
+}
+_NOT_RUN = SolveInfo(SolverStatus.FAILED, 0, 0.0, None, "not run")
+
+
+def static_shapes(problem: PlanningProblem) -> list[tuple[str, BaseGeometry]]:
+    """Outlines of the obstacles that stay put over the horizon (parked cars given as predictions too)."""
+    horizon = problem.options.horizon_time
+    return [(ob.id, obstacle_shape(ob)) for ob in problem.obstacles if is_static(ob, horizon)]
+
+
+def moving_obstacles(problem: PlanningProblem) -> list[DynamicObstacle]:
+    horizon = problem.options.horizon_time
+    return [ob for ob in problem.obstacles if isinstance(ob, DynamicObstacle) and not is_static(ob, horizon)]
+
+
+def choose_candidate(
+    ref: ReferenceLine, cands: CandidateSet, boxes: FrenetBoxes, problem: PlanningProblem
+) -> tuple[int, NDArray[np.bool_]]:
+    """Score every candidate (offset, smoothness, progress, clearance) and return the best
+    collision-free one (the best overall if none is free) with the collision-free mask."""
+    ds = np.diff(cands.s, axis=1)
+    dd = np.diff(cands.d, axis=1) / np.where(ds > 0, ds, 1.0)
+    heading_error = np.arctan(np.concatenate((dd, dd[:, -1:]), axis=1))
+    half_s, half_d = vehicle_extent(heading_error, problem.vehicle, OBSTACLE_MARGIN)
+    hits = box_hits(boxes, cands.s, cands.d, half_s, half_d) & cands.valid
+    free = ~hits.any(axis=1)
+    valid = cands.valid
+    count = valid.sum(axis=1)
+    offset = np.where(valid, cands.d**2, 0.0).sum(axis=1) / count
+    bend = np.abs(np.diff(dd, axis=1)).sum(axis=1)
+    progress = np.where(valid, cands.s, -np.inf).max(axis=1) - cands.s[:, 0]
+    span = max(float(progress.max()), 1e-6)
+    cost = offset + 10.0 * bend + 20.0 * (1.0 - progress / span) + 1e6 * (~free)
+    return int(np.argmin(cost)), np.asarray(free, dtype=bool)
+
+
+def _smoothed_slope(d: FloatArray, s: FloatArray, window: float = 4.0) -> FloatArray:
+    """Heading error [rad] of a lateral profile: its slope averaged over ``window`` [m]."""
+    slope = np.arctan(np.gradient(d, s))
+    width = max(1, round(window / max(float(s[1] - s[0]), 1e-6)))
+    padded = np.pad(slope, (width // 2, width - 1 - width // 2), mode="edge")
+    return np.asarray(np.convolve(padded, np.ones(width) / width, mode="valid"))
+
+
+def _knots(start: EgoFrenet, s_end: float) -> FloatArray:
+    n = int(np.clip(np.ceil((s_end - start.s) / KNOT_SPACING) + 1, 3, MAX_KNOTS))
+    return np.linspace(start.s, s_end, n)
+
+
+def curvature_allowance(s: FloatArray, start: EgoFrenet, problem: PlanningProblem) -> FloatArray:
+    """Largest path curvature [1/m] at knots ``s`` [m]: ``κ_max``, and ``a_lat,max / v²`` for the speed
+    ``v`` the vehicle can at best have slowed to there (braking at half its deceleration from ``v₀``),
+    so that the speed profile can keep the lateral-acceleration limit."""
+    v = problem.vehicle
+    travelled = np.maximum(s - start.s, 0.0)
+    v_sq = np.maximum(problem.ego.speed**2 - v.max_deceleration * travelled, 1.0)
+    return np.minimum(0.9 * v.max_curvature, LIMIT_MARGIN * v.max_lateral_acceleration / v_sq)
+
+
+def _lateral_qp(
+    solver: LateralQPSolver,
+    bounds: LateralBounds,
+    d_ref: FloatArray,
+    start: EgoFrenet,
+    ref: ReferenceLine,
+    allowance: FloatArray,
+) -> LateralQPResult:
+    """Piecewise-jerk QP on ``d(s)``; ``d″`` bounds linearised at ``d_ref`` keep ``|κ_path| ≤ allowance``.
+
+    For small ``d′`` the path's curvature is ``κ_x ≈ (d″/(1 − κd) + κ)/(1 − κd)``, so
+    ``|κ_x| ≤ c`` ⇔ ``(−c(1 − κd) − κ)(1 − κd) ≤ d″ ≤ (c(1 − κd) − κ)(1 − κd)``, with ``1 − κd`` taken
+    at ``d_ref``.
+    """
+    s = bounds.s
+    lower = bounds.lower + QP_SLACK
+    upper = np.maximum(bounds.upper - QP_SLACK, lower)
+    kappa = ref.kappa_at(s)
+    one = np.clip(1.0 - kappa * np.clip(d_ref, lower, upper), 0.05, None)
+    ddd_upper = (allowance * one - kappa) * one
+    ddd_lower = (-allowance * one - kappa) * one
+    problem = LateralQPProblem(
+        ds=float(s[1] - s[0]),
+        d_lower=lower,
+        d_upper=upper,
+        d_ref=np.clip(d_ref, lower, upper),
+        jerk_max=LATERAL_JERK,
+        d0=start.d,
+        dd0=start.dd,
+        ddd0=start.ddd,
+        ddd_lower=ddd_lower,
+        ddd_upper=ddd_upper,
+    )
+    return solver.solve(problem, time_limit_s=QP_TIME_LIMIT)
+
+
+def _speed_limit(path: Path, problem: PlanningProblem) -> FloatArray:
+    v = problem.vehicle
+    target = (
+        v.max_speed
+        if problem.options.target_speed is None
+        else min(problem.options.target_speed, v.max_speed)
+    )
+    with np.errstate(divide="ignore"):
+        lateral = np.sqrt(
+            LIMIT_MARGIN * v.max_lateral_acceleration / np.maximum(np.abs(path.curvature), 1e-9)
+        )
+    # The lowest limit within LIMIT_REACH either side: the profile is checked only at its knots.
+    step = float(path.sigma[-1] / max(path.sigma.shape[0] - 1, 1))
+    size = 2 * max(1, int(np.ceil(LIMIT_REACH / max(step, 1e-6)))) + 1
+    return np.asarray(minimum_filter1d(np.minimum(target, lateral), size=size, mode="nearest"))
+
+
+def _space_time_bound(
+    ref: ReferenceLine,
+    path: Path,
+    movers: list[DynamicObstacle],
+    problem: PlanningProblem,
+    t: FloatArray,
+    start_s: float,
+) -> FloatArray | None:
+    """``σ_max(t_k)`` [m]: how far along the path the vehicle's centre may be at each time so that its
+    footprint stays clear of every moving obstacle's box (follow or yield). Obstacles behind the ego
+    at the start are not followed."""
+    if not movers:
+        return None
+    half_s, half_d = vehicle_extent(np.zeros_like(path.s), problem.vehicle, OBSTACLE_MARGIN)
+    # Every obstacle at every time: corners and edge midpoints, mapped by TransF-κ in one call.
+    outlines = []
+    for ob in movers:
+        st = prediction_at(ob, t)
+        corners = box_corners(st[:, 0], st[:, 1], st[:, 2], ob.length, ob.width)  # (T, 4, 2)
+        outlines.append(np.concatenate((corners, 0.5 * (corners + np.roll(corners, -1, axis=1))), axis=1))
+    pts = np.stack(outlines)  # (K, T, 8, 2)
+    fr = to_frenet(ref, pts.reshape(-1, 2))
+    s_box = fr.s.reshape(pts.shape[:3])
+    d_box = fr.d.reshape(pts.shape[:3])
+    s_min, s_max = s_box.min(axis=2), s_box.max(axis=2)  # (K, T)
+    d_min, d_max = d_box.min(axis=2), d_box.max(axis=2)
+    # Only obstacles ahead of the ego now are followed or yielded to; one coming from behind is the
+    # follower's to avoid (braking for it as it overtakes would invite a rear-end collision).
+    ahead = (0.5 * (s_min[:, :1] + s_max[:, :1]) > start_s) | (s_min[:, :1] > start_s)
+    ps, pd = path.s[None, None, :], path.d[None, None, :]
+    hit = (ps + half_s >= s_min[..., None]) & (ps - half_s <= s_max[..., None])
+    hit &= (pd + half_d >= d_min[..., None]) & (pd - half_d <= d_max[..., None])  # (K, T, knots)
+    first = np.where(hit.any(axis=2), np.argmax(hit, axis=2), -1)
+    limit = np.where(first > 0, path.sigma[np.maximum(first - 1, 0)], np.where(first == 0, 0.0, np.inf))
+    limit = np.where(ahead, limit, np.inf)
+    return np.asarray(limit.min(axis=0))
+
+
+def _speed(
+    solver: SpeedSolver,
+    path: Path,
+    problem: PlanningProblem,
+    s_stop: float,
+    s_upper: FloatArray | None,
+    steps: int,
+    dt: float,
+    jerk_max: float = SPEED_JERK,
+) -> SpeedResult:
+    v = problem.vehicle
+    ego = problem.ego
+    target = (
+        v.max_speed
+        if problem.options.target_speed is None
+        else min(problem.options.target_speed, v.max_speed)
+    )
+    limit = _speed_limit(path, problem)
+    sp = SpeedProblem(
+        dt=dt,
+        steps=steps,
+        v0=max(ego.speed, 0.0),
+        a0=float(np.clip(ego.acceleration, -v.max_deceleration, v.max_acceleration)),
+        limit_s=path.sigma,
+        limit_v=limit,
+        v_target=target,
+        a_min=-v.max_deceleration,
+        a_max=v.max_acceleration,
+        jerk_max=jerk_max,
+        s_stop=s_stop,
+        s_upper=s_upper,
+    )
+    return solver.solve(sp)
+
+
+def _braking(path: Path, problem: PlanningProblem, steps: int, dt: float) -> SpeedResult:
+    """Full braking within the jerk limit along ``path`` (the fallback's speed profile)."""
+    v = problem.vehicle
+    sp = SpeedProblem(
+        dt=dt,
+        steps=steps,
+        v0=max(problem.ego.speed, 0.0),
+        a0=float(np.clip(problem.ego.acceleration, -v.max_deceleration, v.max_acceleration)),
+        limit_s=path.sigma,
+        limit_v=np.zeros_like(path.sigma),
+        v_target=0.0,
+        a_min=-v.max_deceleration,
+        a_max=v.max_acceleration,
+        jerk_max=EMERGENCY_JERK,
+    )
+    jerk = braking_profile(sp)
+    s, vel, a = integrate_jerk(dt, 0.0, sp.v0, sp.a0, jerk)
+    t = np.arange(steps + 1, dtype=np.float64) * dt
+    info = SolveInfo(SolverStatus.SOLVED, 0, 0.0, None, "braking profile")
+    return SpeedResult(
+        info=info,
+        t=t,
+        s=s,
+        v=vel,
+        a=a,
+        jerk=jerk,
+        speed_violation=0.0,
+        position_violation=0.0,
+        max_violation=0.0,
+        qp_solves=0,
+    )
+
+
+@dataclass
+class _Solvers:
+    lateral: LateralQPSolver = field(default_factory=lambda: LateralQPSolver(refine_steps=0))
+    speed: SpeedSolver = field(default_factory=SpeedSolver)
+
+
+_SOLVERS: dict[int, _Solvers] = {}
+
+
+def _solvers() -> _Solvers:
+    """The solvers of this thread (their built problems are reused between plans)."""
+    key = threading.get_ident()
+    if key not in _SOLVERS:
+        _SOLVERS[key] = _Solvers()
+    return _SOLVERS[key]
+
+
+def plan(problem: PlanningProblem) -> PlanResult:
+    """Plan a trajectory for ``problem``; never raises for a planning failure (only for invalid input)."""
+    timer = _Timer()
+    solvers = _solvers()
+    options, vehicle = problem.options, problem.vehicle
+    with timer.stage("reference"):
+        ref = build_reference(problem.reference_line)
+        # Unknown ego curvature: taken as the road's, within what the vehicle can drive at its speed.
+        reachable = min(
+            vehicle.max_curvature, vehicle.max_lateral_acceleration / max(problem.ego.speed, 0.1) ** 2
+        )
+        start = ego_frenet(ref, problem.ego, max_curvature=LIMIT_MARGIN * reachable)
+        check_ego_on_road(ref, problem.lane, start)
+    with timer.stage("candidates"):
+        cands = generate_candidates(ref, problem.lane, problem.ego, vehicle, options, start=start)
+        shapes = static_shapes(problem)
+        boxes = frenet_boxes(ref, shapes)
+        best, free = choose_candidate(ref, cands, boxes, problem)
+        s_c, d_c, _ = cands.points(best)
+    candidate_path = polyline_path(ref, s_c, d_c)
+    stats = CandidateStats(cands.count, int(cands.repaired.sum()), int(free.sum()))
+    steps = int(min(SPEED_STEPS, max(1, round(options.horizon_time / options.dt))))
+    dt_speed = options.horizon_time / steps
+
+    with timer.stage("lateral"):
+        knots = _knots(start, float(s_c[-1]))
+        d_ref = np.interp(knots, s_c, d_c)
+        valid = np.ones(knots.shape[0], dtype=bool)
+        lane_lo = np.full(knots.shape, -np.inf)
+        lane_hi = np.full(knots.shape, np.inf)
+        left_of = pass_left(boxes, knots, d_ref, valid, lane_lo, lane_hi)
+        bounds = lateral_bounds(
+            ref,
+            problem.lane,
+            knots,
+            vehicle,
+            margin=options.lateral_margin,
+            boxes=boxes,
+            left_of=left_of,
+            heading_error=_smoothed_slope(d_ref, knots),
+        )
+        blocked = bounds.blocked
+        if blocked is not None:
+            keep = max(blocked, 3)
+            bounds = LateralBounds(
+                s=knots[:keep],
+                lower=bounds.lower[:keep],
+                upper=np.maximum(bounds.upper[:keep], bounds.lower[:keep]),
+                blocked=blocked,
+            )
+            d_ref = d_ref[:keep]
+        allowance = curvature_allowance(bounds.s, start, problem)
+        qp = _lateral_qp(solvers.lateral, bounds, d_ref, start, ref, allowance)
+        if qp.info.status not in _USABLE:  # too fast for the road: keep at least the vehicle's limit
+            allowance = np.full(bounds.s.shape, 0.9 * vehicle.max_curvature)
+            qp = _lateral_qp(solvers.lateral, bounds, d_ref, start, ref, allowance)
+
+    def fallback(reason: str, path: Path, lateral: SolveInfo, speed: SolveInfo) -> PlanResult:
+        if path.length < float(candidate_path.length):  # brake on the longer, uncut candidate path
+            path = candidate_path
+        prof = _braking(path, problem, steps, dt_speed)
+        traj = sample(path, prof.t, prof.s - prof.s[0], prof.v, prof.a, prof.jerk, options.dt)
+        diag = PlanDiagnostics(stats, lateral, speed, _total(timer), ref.size, int(bounds.s.shape[0]), best)
+        bad = trajectory_violations(ref, problem, traj, shapes)
+        message = reason if not bad else f"{reason}; the braking trajectory still breaks: {bad[0]}"
+        return PlanResult(
+            "fallback", message, traj, cands if options.return_candidates else None, diag, tuple(bad)
+        )
+
+    if qp.info.status not in _USABLE:
+        return fallback(f"lateral QP failed: {qp.info.status}", candidate_path, qp.info, _NOT_RUN)
+
+    with timer.stage("speed"):
+        path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
+        if blocked is not None:
+            s_stop = max(path.length - STOP_GAP, 0.0)
+        elif ref.length < path.s[-1]:  # stop at the reference's end (the path runs past it to brake on)
+            s_stop = float(np.interp(ref.length, path.s, path.sigma))
+        else:  # never past the path's end (it reaches a braking distance beyond the horizon)
+            s_stop = path.length
+        t_knots = np.arange(steps + 1, dtype=np.float64) * dt_speed
+        # Where an obstacle was HEADWAY ago, not where it is: a gap that grows with its speed.
+        t_seen = np.maximum(t_knots - HEADWAY, 0.0)
+        s_upper = _space_time_bound(ref, path, moving_obstacles(problem), problem, t_seen, start.s)
+        if s_upper is not None:
+            s_upper = np.maximum(s_upper - STOP_GAP, 0.0)
+        jerk = EMERGENCY_JERK if blocked is not None else SPEED_JERK
+        speed = _speed(solvers.speed, path, problem, s_stop, s_upper, steps, dt_speed, jerk)
+    if not speed.info.ok:
+        return fallback(f"speed profile failed: {speed.info.status}", path, qp.info, speed.info)
+
+    with timer.stage("trajectory"):
+        traj = sample(path, speed.t, speed.s - speed.s[0], speed.v, speed.a, speed.jerk, options.dt)
+        bad = trajectory_violations(ref, problem, traj, shapes)
+    if bad:
+        return fallback(f"the optimised trajectory breaks a check: {bad[0]}", path, qp.info, speed.info)
+    status: Status = "stopped" if blocked is not None else "ok"
+    message = (
+        f"the road is blocked {bounds.s[-1] - start.s:.1f} m ahead; stopping before it"
+        if blocked is not None
+        else "planned"
+    )
+    diag = PlanDiagnostics(stats, qp.info, speed.info, _total(timer), ref.size, int(bounds.s.shape[0]), best)
+    return PlanResult(status, message, traj, cands if options.return_candidates else None, diag)
+
+
+def _total(timer: _Timer) -> dict[str, float]:
+    out = dict(timer.ms)
+    out["total"] = sum(timer.ms.values())
+    return out

@@ -1,0 +1,130 @@
+"""Paths and trajectories: the lateral solution as a Cartesian path, and its sampling in time.
+
+A path is given by knots ``s_i`` [m] on the reference with ``d, d′ = dd/ds, d″``. With ``κ, κ′`` of the
+reference and ``Δθ = atan2(d′, 1 − κd)``, the path's heading and curvature are the exact Frenet formulas::
+
+    θ = θ_r + Δθ
+    κ_x = ((d″ + (κ′d + κd′)·tan Δθ)·cos²Δθ / (1 − κd) + κ)·cos Δθ / (1 − κd)
+
+Its arc length ``σ`` is measured along the Cartesian knots. A trajectory samples the path at times
+``t`` [s] from a speed profile ``σ(t)`` (exact constant-jerk integration between the profile's knots).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.frenet import to_cartesian
+from planner.reference import FloatArray, ReferenceLine
+
+
+@dataclass(frozen=True)
+class Path:
+    """A path at knots: ``s, d`` [m] on the reference, ``x, y`` [m], ``heading`` [rad], ``curvature``
+    [1/m] and arc length ``sigma`` [m] from the first knot."""
+
+    s: FloatArray
+    d: FloatArray
+    x: FloatArray
+    y: FloatArray
+    heading: FloatArray
+    curvature: FloatArray
+    sigma: FloatArray
+
+    @property
+    def length(self) -> float:
+        return float(self.sigma[-1])
+
+    def truncated(self, n: int) -> Path:
+        """The first ``n`` knots."""
+        return Path(*(np.asarray(getattr(self, f))[:n] for f in _PATH_FIELDS))
+
+
+_PATH_FIELDS = ("s", "d", "x", "y", "heading", "curvature", "sigma")
+
+
+def frenet_path(ref: ReferenceLine, s: FloatArray, d: FloatArray, dd: FloatArray, ddd: FloatArray) -> Path:
+    """The Cartesian path of a lateral profile (see the module docstring)."""
+    xy = to_cartesian(ref, s, d)
+    kappa = ref.kappa_at(s)
+    dkappa = np.interp(s, ref.s, np.gradient(ref.kappa, ref.s)) if ref.size > 2 else np.zeros_like(s)
+    one = 1.0 - kappa * d
+    dtheta = np.arctan2(dd, one)
+    cos, tan = np.cos(dtheta), np.tan(dtheta)
+    curvature = ((ddd + (dkappa * d + kappa * dd) * tan) * cos**2 / one + kappa) * cos / one
+    heading = ref.heading_at(s) + dtheta
+    step = np.linalg.norm(np.diff(xy, axis=0), axis=1)
+    sigma = np.concatenate(([0.0], np.cumsum(step)))
+    return Path(s=s, d=d, x=xy[:, 0], y=xy[:, 1], heading=heading, curvature=curvature, sigma=sigma)
+
+
+def polyline_path(ref: ReferenceLine, s: FloatArray, d: FloatArray) -> Path:
+    """A path through Frenet points with heading and curvature from finite differences (for fallbacks
+    along a candidate)."""
+    xy = to_cartesian(ref, s, d)
+    step = np.linalg.norm(np.diff(xy, axis=0), axis=1)
+    sigma = np.concatenate(([0.0], np.cumsum(step)))
+    if s.shape[0] < 2:
+        heading = ref.heading_at(s)
+        return Path(
+            s=s, d=d, x=xy[:, 0], y=xy[:, 1], heading=heading, curvature=np.zeros_like(s), sigma=sigma
+        )
+    dx = np.gradient(xy[:, 0], sigma, edge_order=1)
+    dy = np.gradient(xy[:, 1], sigma, edge_order=1)
+    heading = np.unwrap(np.arctan2(dy, dx))
+    curvature = np.gradient(heading, sigma, edge_order=1)
+    return Path(s=s, d=d, x=xy[:, 0], y=xy[:, 1], heading=heading, curvature=curvature, sigma=sigma)
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Trajectory points of the vehicle's centre: ``t`` [s], ``x, y`` [m], ``heading`` [rad],
+    ``curvature`` [1/m], ``v`` [m/s], ``a`` [m/s²], and ``s, d`` [m] on the reference."""
+
+    t: FloatArray
+    x: FloatArray
+    y: FloatArray
+    heading: FloatArray
+    curvature: FloatArray
+    v: FloatArray
+    a: FloatArray
+    s: FloatArray
+    d: FloatArray
+
+    @property
+    def size(self) -> int:
+        return int(self.t.shape[0])
+
+
+def sample(
+    path: Path,
+    t_knots: FloatArray,
+    sigma0: FloatArray,
+    v: FloatArray,
+    a: FloatArray,
+    jerk: FloatArray,
+    dt: float,
+) -> Trajectory:
+    """Sample ``path`` every ``dt`` [s] over the profile's span; ``σ(t)`` from the profile's knots
+    ``(t, σ, v, a)`` and its constant jerks."""
+    horizon = float(t_knots[-1])
+    t = np.arange(0.0, horizon + 1e-9, dt)
+    k = np.clip(np.searchsorted(t_knots, t, side="right") - 1, 0, jerk.shape[0] - 1)
+    tau = t - t_knots[k]
+    sig = sigma0[k] + v[k] * tau + a[k] * tau**2 / 2 + jerk[k] * tau**3 / 6
+    vel = np.maximum(v[k] + a[k] * tau + jerk[k] * tau**2 / 2, 0.0)
+    acc = a[k] + jerk[k] * tau
+    sig = np.clip(np.maximum.accumulate(sig), 0.0, path.length)
+    return Trajectory(
+        t=t,
+        x=np.interp(sig, path.sigma, path.x),
+        y=np.interp(sig, path.sigma, path.y),
+        heading=np.interp(sig, path.sigma, np.unwrap(path.heading)),
+        curvature=np.interp(sig, path.sigma, path.curvature),
+        v=vel,
+        a=acc,
+        s=np.interp(sig, path.sigma, path.s),
+        d=np.interp(sig, path.sigma, path.d),
+    )

@@ -1,0 +1,1023 @@
+r"""Speed profile ``s(t)`` along a fixed path: a jerk-controlled optimal control problem, solved by SQP.
+
+Time grid ``t_k = k·Δt``, ``k = 0 … N`` (``Δt > 0`` [s], horizon ``N·Δt``). The state at ``t_k`` is the
+arc length ``s_k`` [m], the speed ``v_k`` [m/s] and the acceleration ``a_k`` [m/s²]; the control is the
+jerk ``j_k`` [m/s³], constant on ``[t_k, t_{k+1}]``, ``k = 0 … N−1``. Path, limits and obstacles reach
+this module only as arrays: nothing here knows about roads.
+
+Dynamics (exact integration of a constant jerk) and initial state, hard::
+
+    a_{k+1} = a_k + j_k Δt
+    v_{k+1} = v_k + a_k Δt + j_k Δt²/2
+    s_{k+1} = s_k + v_k Δt + a_k Δt²/2 + j_k Δt³/6
+    (s_0, v_0, a_0) = (s0, v0, a0)
+
+Boxes, hard (``j_k`` for ``k = 0 … N−1``, the others for ``k = 1 … N``)::
+
+    −j_max ≤ j_k ≤ j_max
+    a_lo,k ≤ a_k ≤ a_hi,k        a_lo,k = min(a_min, a0 + j_max t_k),   a_hi,k = max(a_max, a0 − j_max t_k)
+    v_k ≥ v_lo,k,   v_k + a_k Δt/2 + j_k Δt²/8 ≥ v_lo,k+½        (the speed at the knots and half-way)
+
+The acceleration box is ``[a_min, a_max]`` unless the measured ``a0`` lies outside it; the box then opens
+exactly as far as the jerk limit forces (the fastest return ``a0 ± j_max t``). That is the only relaxation of
+``a_min`` and it needs no slack: ``a_min`` is the vehicle's physical limit, so braking harder is never traded
+against a soft constraint — when full braking cannot keep a limit, the limit is violated (and the violation
+reported). Likewise ``v ≥ 0`` (no reversing) gives way only where ``a0 < 0`` makes it impossible:
+``v_lo = min(0, v_rec)`` with ``v_rec`` the speed under the fastest release of the brake,
+``a_rec,k = min(a0 + j_max t_k, 0)``. With these bounds the hard constraints always have a solution (the
+release profile), so every QP is feasible. The half-step row keeps a stopped vehicle stopped: with ``v ≥ 0``
+at the knots only, an alternating ``a = ±ε`` would let it creep backwards between them.
+
+Soft constraints, ``k = 1 … N``, with slacks ``σᵛ_k ≥ 0`` [m/s] and ``σˢ_k ≥ 0`` [m]::
+
+    v_k ≤ v_lim(s_k) + σᵛ_k      (k < N)        path speed limit
+    v_N ≤ v_end(s_N) + σᵛ_N                      … at the horizon's end, with room to brake beyond it
+    s_k ≤ s_bound,k + σˢ_k,      s_bound,k = min(s_stop, s_upper,k)
+
+``v_lim`` is the piecewise-linear interpolant of ``(limit_s, limit_v)``, constant beyond both ends (the caller
+computes it as ``min(max_speed, target, √(a_lat,max/|κ(s)|))``); ``s_upper`` is optional (``+∞`` where free).
+``v_end`` makes ``s_stop`` hold for all time, lets the next plan slow down for limits beyond the horizon
+and keeps the vehicle able to stay behind ``s_upper`` continued at its final rate
+``u = max(0, (s_upper,N − s_upper,N−1)/Δt)``. With ``b = −a_min/2`` and ``c = b²/(2 j_max)``::
+
+    v_end(s) = min( min_{s′ ≥ s} √((v*(s′) + c)² + 2b(s′ − s)) − c,   u + √(c² + 2b(s_upper,N − s)₊) − c )
+
+with ``v* = v_lim`` before ``s_stop`` and 0 from ``s_stop`` on: the highest speed at ``s`` from which braking
+(a jerk-limited ramp to ``−b``, then ``−b``) gets below ``v*`` everywhere ahead, and down to the speed ``u``
+before reaching the moving bound (the second term only when ``s_upper`` is given and finite at ``N``).
+Constraints at ``k = 0`` are not imposed: the initial state is a measurement.
+
+Cost (``w·`` and ``ρ·`` are the fields of :class:`SpeedWeights`)::
+
+    J = Σ_{k=1}^{N} Δt [w_speed (v_k − v_target)² + w_acc a_k²] + Σ_{k=0}^{N−1} Δt w_jerk j_k²
+      + Σ_{k=1}^{N} [ρ_v (σᵛ_k + σᵛ_k²/100) + ρ_s (σˢ_k + σˢ_k²/100)]
+
+The running terms are weighted by ``Δt`` (an integral over time), so the weights do not depend on the grid.
+The slack penalty is exact (ℓ1): when the soft constraints can be met, the optimum meets them exactly
+(``ρ`` is far above their multipliers); when they cannot — ``v0`` above the limit, too close to ``s_stop``
+to stop with ``a_min``, ``s_upper`` already behind the vehicle — the optimum is the physically best effort
+(full braking within the jerk limit) instead of an infeasible problem. The small quadratic part spreads an
+unavoidable violation instead of piling it up. :class:`SpeedResult` reports the violation of the returned
+profile, evaluated on ``v_lim``, ``v ≥ 0`` and ``s_bound`` themselves (``max_violation``).
+
+Solution method: sequential quadratic programming. The only nonlinearity is the speed limit. Iteration
+``i`` replaces it, around the current profile ``s̄``, by a local model that is a minimum of affine pieces
+(so the QP stays convex)::
+
+    v_k ≤ ℓ_k(s_k) + σᵛ_k  for every piece ℓ_k of knot k
+
+* ``k < N``: the segment of ``v_lim`` holding ``s̄_k`` (the tangent), plus the segments behind and ahead of
+  it where the kink between is concave. The minimum of the pieces is ``v_lim`` itself across a concave kink
+  and lies below it beyond a convex one, so the model never over-estimates the limit near ``s̄_k``.
+* ``k = N``: ``v_lim``'s tangent and, for each term of ``v_end``, its form ``(w + c)² + 2b s ≤ K`` (``w = v``,
+  or ``v − u`` for the moving bound), convex in ``(s, v)`` and linear in ``s``, with ``(w + c)²`` replaced by
+  its tangent at ``ŵ``, the expected value (Newton), or, when ``ŵ < 1 m/s``, by its chord over
+  ``[0, 1 m/s]`` (exact at standstill, slightly conservative above). Linearised in ``s`` instead, ``v_end``
+  would be far too steep near a stop. The QP's cost gets the Lagrangian's curvature of these rows,
+  ``½ Σ λ/(ŵ + c)·(v_N − v̂)²`` with ``λ`` their multipliers in the previous QP, so that an end state sliding
+  along the curved ``v_end`` converges quadratically rather than zig-zagging.
+
+The QP is solved with HPIPM, a structure-exploiting (Riccati) interior-point method, through CasADi's
+``qpsol``. It is built once per ``(N, Δt, weights)`` with ``v_target``, the pieces' slopes and the end
+curvature as CasADi parameters and everything else as bounds, so nothing about its structure changes
+between requests (the limit profile may have any number of points; an unused piece gets an infinite
+bound). The step to the QP's solution is globalised by a backtracking line search on the exact penalty
+function (``J`` with the true violations as slacks); every trial is dynamically feasible, since the
+dynamics are linear and the boxes convex. The iteration stops when the model agrees with the limit at the
+QP's solution, wherever the speed is at the limit, to ``tolerance`` (100 × that at ``k = N``, a braking
+margin rather than a limit) — status ``solved`` — or after ``max_iterations`` QPs or a failed line search
+(``solved_inaccurate``: the best iterate, a valid profile whose violations are reported truthfully; it
+happens where a sharp convex kink of ``v_lim``, a V-shaped dip, has to be crossed by many knots, one or two
+per iteration). ``s̄`` starts from the previous solution shifted in time (warm start) or from a
+forward–backward pass of the limit along the path, timed (cold start). The returned profile is
+re-integrated from the jerks with the formulas above, so it meets the dynamics to rounding error whatever
+the QP's accuracy.
+
+Internally ``s`` is measured from ``s0``, so the QP's numbers stay small wherever the path frame starts.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from solvers.result import SolveInfo, SolverStatus
+
+FloatArray = NDArray[np.float64]
+
+__all__ = [
+    "MAX_STEPS",
+    "SpeedProblem",
+    "SpeedResult",
+    "SpeedSolver",
+    "SpeedWeights",
+    "braking_profile",
+    "end_speed_limit",
+    "integrate_jerk",
+    "objective",
+    "solve_speed",
+    "speed_limit",
+]
+
+#: largest horizon accepted [steps]
+MAX_STEPS = 1000
+#: HPIPM replaces ±∞ bounds by ± this (relative to s0, every quantity stays far below it)
+_HPIPM_INF = 1e6
+#: HPIPM's settings: about 20 interior-point iterations per QP here
+_HPIPM_OPTIONS: dict[str, Any] = {
+    "mode": "speed_abs",
+    "mu0": 1.0,
+    "iter_max": 100,
+    "res_g_max": 1e-7,
+    "res_b_max": 1e-7,
+    "res_d_max": 1e-7,
+    "res_m_max": 1e-7,
+}
+#: HPIPM's return flags: converged, iteration limit (the iterate is still used)
+_HPIPM_SUCCESS, _HPIPM_MAX_ITER = 0, 1
+#: a limit row counts as active when the speed is within this of the limit or its model [m/s]
+_ACTIVE_BAND = 1e-3
+#: step lengths the line search tries
+_STEP_LENGTHS = tuple(0.5**i for i in range(7))
+#: points of the cold start's forward–backward pass
+_GUESS_POINTS = 257
+#: the quadratic slack penalty, as a share of the linear one (per m/s or m)
+_QUADRATIC_SHARE = 0.01
+#: limit rows per knot (tangent, piece behind, piece ahead)
+_PIECES = 3
+#: the smallest v̂ of the horizon-end linearisation [m/s]
+_NEWTON_MIN_SPEED = 1.0
+#: the horizon-end row converges to this many times the tolerance
+_END_TOLERANCE_FACTOR = 100.0
+#: relative merit increase still accepted with a converged step (rounding)
+_MERIT_SLACK = 1e-6
+#: violations below this are rounding, not worth a word in the message
+_REPORTED_VIOLATION = 1e-6
+#: rows per stage: 3 dynamics, the half-step speed, the limit pieces, the position
+_ROWS = 5 + _PIECES
+
+
+# --------------------------------------------------------------------------------------------------------
+# Problem and result
+
+
+@dataclass(frozen=True)
+class SpeedWeights:
+    """Cost weights (see ``J`` in the module docstring); finite, ``acceleration ≥ 0``, the others ``> 0``.
+
+    The defaults pull the speed towards ``v_target`` with a time constant of about
+    ``√(acceleration/speed) ≈ 1.4 s``, smoothed by the jerk term; a 5 m/s speed-up takes about 4 s at
+    ``a_max = 2 m/s²``. The slack penalties are per knot. The penalty is exact only above the constraints'
+    multipliers, which grow like ``2·speed·v_target·N·Δt`` (a stop line held against a 35 m/s target over
+    8 s: about 600): the defaults cover ``v_target·N·Δt`` up to a few thousand m. Raise them with the
+    running weights or much longer horizons; ``max_violation`` shows when they were too low.
+
+    Attributes:
+        speed: on ``Δt (v_k − v_target)²``.
+        acceleration: on ``Δt a_k²``.
+        jerk: on ``Δt j_k²``.
+        speed_violation: ρ_v, on ``σᵛ_k + σᵛ_k²/100`` (``σᵛ`` in m/s).
+        position_violation: ρ_s, on ``σˢ_k + σˢ_k²/100`` (``σˢ`` in m).
+    """
+
+    speed: float = 1.0
+    acceleration: float = 2.0
+    jerk: float = 0.5
+    speed_violation: float = 1e4
+    position_violation: float = 1e4
+
+    def __post_init__(self) -> None:
+        for name in self.__dataclass_fields__:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+                raise ValueError(f"weights.{name}: must be a finite number, got {value!r}")
+            positive = name != "acceleration"
+            if value < 0 or (positive and value == 0):
+                raise ValueError(f"weights.{name}: must be {'> 0' if positive else '≥ 0'}, got {value!r}")
+            object.__setattr__(self, name, float(value))
+
+
+def _scalar(name: str, value: object, *, allow_posinf: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise ValueError(f"{name}: must be a number, got {value!r}")
+    try:
+        result = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: must be a number, got {value!r}") from None
+    if math.isnan(result) or result == -math.inf or (result == math.inf and not allow_posinf):
+        raise ValueError(f"{name}: must be finite{' or +inf' if allow_posinf else ''}, got {result}")
+    return result
+
+
+def _array(name: str, value: ArrayLike, *, allow_posinf: bool = False) -> FloatArray:
+    try:
+        array = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: must be an array of numbers") from None
+    if array.ndim != 1:
+        raise ValueError(f"{name}: expected a 1-D array, got shape {array.shape}")
+    bad = np.isnan(array) | np.isneginf(array)
+    if not allow_posinf:
+        bad |= np.isposinf(array)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{name}: invalid value {array[i]} at index {i}")
+    array.setflags(write=False)
+    return array
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class SpeedProblem:
+    """One speed-profile request, validated on construction (``ValueError`` on misuse).
+
+    Arrays are copied to read-only float64. Bounds and limits that cannot be met are not misuse: they are
+    soft (see the module docstring) and the violation is reported.
+
+    Attributes:
+        dt: time step Δt [s], finite, > 0.
+        steps: number of steps N, an integer in ``1 … MAX_STEPS``; profiles have N + 1 knots.
+        v0: initial speed [m/s], finite, ≥ 0.
+        limit_s: arc lengths of the speed limit [m], finite, strictly increasing, at least one point.
+        limit_v: speed limit at ``limit_s`` [m/s], finite, ≥ 0; linear in between, constant beyond the ends.
+        v_target: desired speed [m/s], finite, ≥ 0.
+        a_min: most negative acceleration, −(max deceleration) [m/s²], finite, < 0.
+        a_max: largest acceleration [m/s²], finite, ≥ 0.
+        jerk_max: bound on ``|j|`` [m/s³], finite, > 0.
+        s0: initial arc length [m], finite.
+        a0: initial acceleration [m/s²], finite (may lie outside ``[a_min, a_max]``).
+        s_stop: ``s(t) ≤ s_stop`` for all t [m] (a blocked point or the path's end); ``+inf``: none.
+        s_upper: optional ``s(t_k) ≤ s_upper[k]`` [m], shape (N + 1,), ``+inf`` where free, no NaN or
+            ``−inf`` (entry 0 is not imposed).
+        weights: cost weights.
+    """
+
+    dt: float
+    steps: int
+    v0: float
+    limit_s: FloatArray
+    limit_v: FloatArray
+    v_target: float
+    a_min: float
+    a_max: float
+    jerk_max: float
+    s0: float = 0.0
+    a0: float = 0.0
+    s_stop: float = math.inf
+    s_upper: FloatArray | None = None
+    weights: SpeedWeights = field(default_factory=SpeedWeights)
+
+    def __post_init__(self) -> None:
+        def put(name: str, value: object) -> None:
+            object.__setattr__(self, name, value)
+
+        dt = _scalar("dt", self.dt)
+        if dt <= 0:
+            raise ValueError(f"dt: must be > 0, got {dt}")
+        put("dt", dt)
+        steps = self.steps
+        if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or not 1 <= steps <= MAX_STEPS:
+            raise ValueError(f"steps: must be an integer in 1 … {MAX_STEPS}, got {steps!r}")
+        put("steps", int(steps))
+        for name in ("v0", "v_target", "a_min", "a_max", "jerk_max", "s0", "a0"):
+            put(name, _scalar(name, getattr(self, name)))
+        put("s_stop", _scalar("s_stop", self.s_stop, allow_posinf=True))
+        for name, value, ok, rule in (
+            ("v0", self.v0, self.v0 >= 0, "≥ 0"),
+            ("v_target", self.v_target, self.v_target >= 0, "≥ 0"),
+            ("a_min", self.a_min, self.a_min < 0, "< 0"),
+            ("a_max", self.a_max, self.a_max >= 0, "≥ 0"),
+            ("jerk_max", self.jerk_max, self.jerk_max > 0, "> 0"),
+        ):
+            if not ok:
+                raise ValueError(f"{name}: must be {rule}, got {value}")
+
+        limit_s = _array("limit_s", self.limit_s)
+        limit_v = _array("limit_v", self.limit_v)
+        if limit_s.size < 1:
+            raise ValueError("limit_s: must have at least one point")
+        if limit_v.shape != limit_s.shape:
+            raise ValueError(f"limit_v: expected shape {limit_s.shape} (as limit_s), got {limit_v.shape}")
+        steps_s = np.diff(limit_s)
+        if np.any(steps_s <= 0):
+            i = int(np.flatnonzero(steps_s <= 0)[0]) + 1
+            raise ValueError(f"limit_s: must be strictly increasing (index {i}: {limit_s[i]})")
+        if np.any(limit_v < 0):
+            i = int(np.flatnonzero(limit_v < 0)[0])
+            raise ValueError(f"limit_v: must be ≥ 0 (index {i}: {limit_v[i]})")
+        put("limit_s", limit_s)
+        put("limit_v", limit_v)
+        if self.s_upper is not None:
+            s_upper = _array("s_upper", self.s_upper, allow_posinf=True)
+            if s_upper.shape != (self.steps + 1,):
+                raise ValueError(f"s_upper: expected shape ({self.steps + 1},), got {s_upper.shape}")
+            put("s_upper", s_upper)
+        if not isinstance(self.weights, SpeedWeights):
+            raise ValueError(f"weights: expected SpeedWeights, got {type(self.weights).__name__}")
+
+    @property
+    def t(self) -> FloatArray:
+        """Knot times ``t_k = k·Δt`` [s], shape (N + 1,)."""
+        return np.arange(self.steps + 1, dtype=np.float64) * self.dt
+
+    def s_bound(self) -> FloatArray:
+        """``min(s_stop, s_upper[k])`` per knot [m] (``+inf`` where free), shape (N + 1,)."""
+        bound = np.full(self.steps + 1, self.s_stop)
+        if self.s_upper is not None:
+            bound = np.minimum(bound, self.s_upper)
+        return bound
+
+    def accel_bounds(self) -> tuple[FloatArray, FloatArray]:
+        """``(a_lo, a_hi)`` per knot [m/s²]: ``[a_min, a_max]``, opened as far as an outside ``a0`` forces."""
+        ramp = self.jerk_max * self.t
+        return np.minimum(self.a_min, self.a0 + ramp), np.maximum(self.a_max, self.a0 - ramp)
+
+    def speed_floor(self) -> tuple[FloatArray, FloatArray]:
+        """``v_lo`` [m/s] at the knots (shape (N + 1,)) and half-way through the steps (shape (N,)).
+
+        0, or less where ``a0 < 0`` makes a negative speed unavoidable (the fastest release of the brake).
+        """
+        if self.a0 >= 0:
+            return np.zeros(self.steps + 1), np.zeros(self.steps)
+        dt = self.dt
+        jerk = np.diff(np.minimum(self.a0 + self.jerk_max * self.t, 0.0)) / dt
+        _, v, a = integrate_jerk(dt, 0.0, self.v0, self.a0, jerk)
+        half = v[:-1] + a[:-1] * dt / 2 + jerk * dt**2 / 8
+        return np.minimum(v, 0.0), np.minimum(half, 0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class SpeedResult:
+    """A speed profile: knots ``t, s, v, a`` (shape (N + 1,)) and the jerks ``jerk`` (shape (N,)).
+
+    Never contains NaN, and always meets the dynamics (it is integrated from ``jerk``). When ``info.ok`` is
+    false the profile is :func:`braking_profile`: full braking within the jerk limit, ignoring every other
+    constraint — a safe fallback, not a solution.
+
+    Attributes:
+        info: status; iterations (interior-point iterations summed over the QPs); time; objective ``J``
+            with the true violations as slacks (``None`` when not ok); message.
+        t, s, v, a: time [s], arc length [m], speed [m/s], acceleration [m/s²] at the knots.
+        jerk: jerk on each step [m/s³].
+        speed_violation: largest ``max(v_k − v_lim(s_k), −v_k)`` over ``k ≥ 1``, or 0 [m/s].
+        position_violation: largest ``s_k − min(s_stop, s_upper,k)`` over ``k ≥ 1``, or 0 [m].
+        max_violation: the larger of the two (each in its own unit): the slack the profile needed.
+        qp_solves: QPs solved (SQP iterations).
+    """
+
+    info: SolveInfo
+    t: FloatArray
+    s: FloatArray
+    v: FloatArray
+    a: FloatArray
+    jerk: FloatArray
+    speed_violation: float
+    position_violation: float
+    max_violation: float
+    qp_solves: int
+
+    @property
+    def ok(self) -> bool:
+        """True when the profile is a solution (status ``solved`` or ``solved_inaccurate``)."""
+        return self.info.ok
+
+
+# --------------------------------------------------------------------------------------------------------
+# Profile arithmetic (vectorised)
+
+
+def speed_limit(problem: SpeedProblem, s: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """``(v_lim(s), v_lim′(s))`` [m/s, 1/s]: the path's limit and the slope of the segment holding ``s``.
+
+    At a breakpoint the slope is that of the segment ahead; beyond the ends the limit is constant (slope 0).
+    """
+    xs, ys = problem.limit_s, problem.limit_v
+    s = np.asarray(s, dtype=np.float64)
+    value = np.interp(s, xs, ys)
+    if xs.size < 2:
+        return value, np.zeros_like(value)
+    segment = np.clip(np.searchsorted(xs, s, side="right") - 1, 0, xs.size - 2)
+    slope = (ys[segment + 1] - ys[segment]) / (xs[segment + 1] - xs[segment])
+    slope = np.where((s < xs[0]) | (s >= xs[-1]), 0.0, slope)
+    return value, slope
+
+
+@dataclass(frozen=True)
+class _EndTerms:
+    """The binding terms of ``v_end`` at one ``s`` (see the module docstring).
+
+    ``b``, ``c``: braking parameters. ``energy``: ``K = (v*(s′) + c)² + 2b s′`` of the binding ``s′`` (the
+    constraint is ``(v + c)² + 2b s ≤ K``), ``None`` when ``s′ = s`` binds (then ``v_end = v_lim(s)``).
+    ``rate``, ``bound``: ``u`` and ``s_upper,N`` of the moving-bound term, ``None`` without it.
+    """
+
+    b: float
+    c: float
+    energy: float | None
+    rate: float | None
+    bound: float | None
+
+
+def _end_terms(problem: SpeedProblem, s: float) -> _EndTerms:
+    b = -0.5 * problem.a_min
+    c = b * b / (2.0 * problem.jerk_max)
+    stop = problem.s_stop
+    rate = bound = None
+    if problem.s_upper is not None and math.isfinite(problem.s_upper[-1]):
+        bound, before = float(problem.s_upper[-1]), float(problem.s_upper[-2])
+        rate = max((bound - before) / problem.dt, 0.0) if math.isfinite(before) else 0.0
+    if s >= stop:
+        return _EndTerms(b, c, (0.0 + c) ** 2 + 2.0 * b * stop, rate, bound)
+    xs, ys = problem.limit_s, problem.limit_v
+    here = float(np.interp(s, xs, ys))
+    ahead = (xs > s) & (xs < stop)
+    cand_s = [np.array([s]), xs[ahead]]
+    cand_v = [np.array([here]), ys[ahead]]
+    if math.isfinite(stop):
+        cand_s.append(np.array([stop]))
+        cand_v.append(np.array([0.0]))
+    if xs.size >= 2:
+        # stationary points of (v(s′) + c)² + 2b s′ on falling segments: v(s′) + c = −b/m
+        m = np.diff(ys) / np.diff(xs)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x_star = xs[:-1] + (-b / m - c - ys[:-1]) / m
+        inside = (m < 0) & (x_star > np.maximum(xs[:-1], s)) & (x_star < np.minimum(xs[1:], stop))
+        cand_s.append(x_star[inside])
+        cand_v.append(ys[:-1][inside] + m[inside] * (x_star[inside] - xs[:-1][inside]))
+    energy = (np.maximum(np.concatenate(cand_v), 0.0) + c) ** 2 + 2.0 * b * np.concatenate(cand_s)
+    best = int(np.argmin(energy))
+    return _EndTerms(b, c, None if best == 0 else float(energy[best]), rate, bound)
+
+
+def end_speed_limit(problem: SpeedProblem, s: float) -> float:
+    """``v_end(s)`` [m/s], the horizon-end limit of the module docstring.
+
+    The minimum over ``s′ ≥ s`` is exact: over ``s′ = s``, the breakpoints ahead, ``s_stop`` and, on each
+    falling segment, the point where ``(v + c)² + 2b s′`` is stationary.
+    """
+    s = float(s)
+    terms = _end_terms(problem, s)
+    b, c = terms.b, terms.c
+    if terms.energy is None:
+        value = float(np.interp(s, problem.limit_s, problem.limit_v))
+    else:
+        value = math.sqrt(max(terms.energy - 2.0 * b * s, 0.0)) - c
+    if terms.rate is not None and terms.bound is not None:
+        value = min(value, terms.rate + math.sqrt(c * c + 2.0 * b * max(terms.bound - s, 0.0)) - c)
+    return max(value, 0.0)
+
+
+def integrate_jerk(
+    dt: float, s0: float, v0: float, a0: float, jerk: ArrayLike
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``(s, v, a)`` at the knots from the initial state and the jerks (exact: constant jerk per step)."""
+    jerk = np.asarray(jerk, dtype=np.float64)
+    a = np.empty(jerk.size + 1)
+    a[0] = 0.0
+    np.cumsum(jerk * dt, out=a[1:])
+    a += a0
+    v = np.empty_like(a)
+    v[0] = 0.0
+    np.cumsum(a[:-1] * dt + jerk * (dt**2 / 2), out=v[1:])
+    v += v0
+    s = np.empty_like(a)
+    s[0] = 0.0
+    np.cumsum(v[:-1] * dt + a[:-1] * (dt**2 / 2) + jerk * (dt**3 / 6), out=s[1:])
+    s += s0
+    return s, v, a
+
+
+def _violations(problem: SpeedProblem, s: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Per-knot violations ``(e_v, e_s)`` of ``v_lim``/``v ≥ 0`` and ``s_bound`` (0 at knot 0)."""
+    limit, _ = speed_limit(problem, s)
+    e_v = np.maximum(np.maximum(v - limit, -v), 0.0)
+    bound = problem.s_bound()
+    e_s = np.where(np.isfinite(bound), np.maximum(s - np.where(np.isfinite(bound), bound, 0.0), 0.0), 0.0)
+    e_v[0] = e_s[0] = 0.0
+    return e_v, e_s
+
+
+def objective(problem: SpeedProblem, s: FloatArray, v: FloatArray, a: FloatArray, jerk: ArrayLike) -> float:
+    """``J`` of the module docstring for a profile, with its true violations as the slacks."""
+    w, dt = problem.weights, problem.dt
+    jerk = np.asarray(jerk, dtype=np.float64)
+    limit, _ = speed_limit(problem, s[1:])
+    limit[-1] = end_speed_limit(problem, float(s[-1]))
+    e_v = np.maximum(v[1:] - limit, 0.0)
+    _, e_s = _violations(problem, s, v)
+    running = dt * (
+        w.speed * np.sum((v[1:] - problem.v_target) ** 2)
+        + w.acceleration * np.sum(a[1:] ** 2)
+        + w.jerk * np.sum(jerk**2)
+    )
+    penalty = w.speed_violation * np.sum(e_v + _QUADRATIC_SHARE * e_v**2) + w.position_violation * np.sum(
+        e_s + _QUADRATIC_SHARE * e_s**2
+    )
+    return float(running + penalty)
+
+
+def _release(a: float, dt: float, jmax: float) -> tuple[list[float], float]:
+    """The fastest return of ``a`` to 0 within ``jmax`` (full-jerk steps, then one partial step).
+
+    Returns the jerks and the change of speed over them.
+    """
+    if a == 0.0:
+        return [], 0.0
+    direction = -math.copysign(1.0, a)
+    full = math.floor(abs(a) / (jmax * dt) + 1e-12)
+    rest = a + direction * jmax * dt * full  # what the partial step removes
+    dv = full * a * dt + direction * jmax * dt**2 * full**2 / 2 + rest * dt / 2
+    jerks = [direction * jmax] * full + ([-rest / dt] if abs(rest) > 1e-12 * (1.0 + abs(a)) else [])
+    return jerks, dv
+
+
+def _spare_speed(v: float, a: float, dt: float, jmax: float) -> float:
+    """Speed left when ``a`` returns to 0 as fast as possible from ``(v, a)`` [m/s]."""
+    return v + _release(a, dt, jmax)[1]
+
+
+def braking_profile(problem: SpeedProblem) -> FloatArray:
+    """Jerks of a full stop: ``a → a_min`` within ``jerk_max``, then back to 0 just as ``v`` reaches 0.
+
+    The fallback when the solver fails; it ignores the path limit, ``s_stop`` and ``s_upper``. Each step
+    brakes harder (towards ``a_min``) as long as the fastest release of the brake after it still ends at
+    ``v ≥ 0``. Then one step with the jerk that makes that release end exactly at ``v = 0`` (found by
+    bisection: the speed left is increasing in it), the release, and standstill. The jerk limit holds
+    throughout, and ``v = a = 0`` at the end up to rounding. Where ``a0`` makes overshooting ``v = 0``
+    unavoidable it releases as fast as possible and then stops the backward motion the same way (mirrored),
+    so ``v`` stays above :meth:`SpeedProblem.speed_floor`.
+    """
+    dt, jmax, a_min = problem.dt, problem.jerk_max, problem.a_min
+    n = problem.steps
+    jerk: list[float] = []
+    v, a = problem.v0, problem.a0
+
+    def after(v: float, a: float, j: float) -> tuple[float, float]:
+        return v + a * dt + j * dt**2 / 2, a + j * dt
+
+    while len(jerk) < n and not (abs(v) <= 1e-12 and abs(a) <= 1e-12):
+        sign = 1.0 if v > 0 or (v == 0 and a > 0) else -1.0  # mirror a backward motion
+        vm, am = sign * v, sign * a
+        brake = float(np.clip((a_min - am) / dt, -jmax, jmax))
+        if _spare_speed(*after(vm, am, brake), dt, jmax) >= 0:
+            steps = [brake]
+        elif _spare_speed(vm, am, dt, jmax) < 0:
+            steps = [min(jmax, -am / dt)]  # overshooting whatever happens: release as fast as possible
+        else:  # the landing: the spare speed after j is −… at j = brake and ≥ 0 at j = jmax
+            low, high = brake, jmax
+            for _ in range(60):
+                mid = 0.5 * (low + high)
+                low, high = (mid, high) if _spare_speed(*after(vm, am, mid), dt, jmax) < 0 else (low, mid)
+            steps = [high, *_release(after(vm, am, high)[1], dt, jmax)[0]]
+        for j in steps[: n - len(jerk)]:
+            jerk.append(sign * j)
+            v, a = after(v, a, sign * j)
+        if len(steps) > 1:  # landed, up to rounding
+            v = a = 0.0
+    return np.array(jerk + [0.0] * (n - len(jerk)), dtype=np.float64)
+
+
+# --------------------------------------------------------------------------------------------------------
+# The QP, built once per (N, dt, weights)
+
+
+def _build_qp(steps: int, dt: float, w: SpeedWeights) -> Any:
+    """The CasADi/HPIPM QP in stage order ``z = [x_0, u_0, x_1, u_1, …, x_N]``.
+
+    ``x_k = (s_k − s0, v_k, a_k)``, ``u_k = (j_k, σᵛ_{k+1}, σˢ_{k+1})``. Rows of stage ``k < N``: the three
+    dynamics rows ``f(x_k, u_k) − x_{k+1} = 0``, the half-step speed ``≥ v_lo``, then the two soft rows of
+    knot ``k + 1`` written through the dynamics (so that they belong to stage ``k``): ``v − d·s − σᵛ ≤ ·``
+    (the linearised limit, slope ``d`` a parameter) and ``s − σˢ ≤ ·``. Parameters
+    ``p = [v_target, d_1 … d_N]``; all else is bounds.
+    """
+    n = steps
+    X = ca.SX.sym("x", 3, n + 1)
+    U = ca.SX.sym("u", 3, n)
+    p = ca.SX.sym("p", 3 + _PIECES * n)
+    v_target, curvature, v_hat = p[0], p[1], p[2]
+    slope = ca.reshape(p[3:], _PIECES, n)
+    s, v, a = X[0, :n], X[1, :n], X[2, :n]
+    j, sig_v, sig_s = U[0, :], U[1, :], U[2, :]
+    s1 = s + dt * v + dt**2 / 2 * a + dt**3 / 6 * j
+    v1 = v + dt * a + dt**2 / 2 * j
+    a1 = a + dt * j
+    v_half = v + dt / 2 * a + dt**2 / 8 * j
+    limit_rows = [v1 - slope[i, :] * s1 - sig_v for i in range(_PIECES)]
+    rows = ca.vertcat(s1 - X[0, 1:], v1 - X[1, 1:], a1 - X[2, 1:], v_half, *limit_rows, s1 - sig_s)
+    g = ca.reshape(rows, _ROWS * n, 1)
+    z = ca.vertcat(ca.reshape(ca.vertcat(X[:, :n], U), 6 * n, 1), X[:, n])
+    cost = (
+        dt * (w.speed * ca.sumsqr(X[1, 1:] - v_target) + w.acceleration * ca.sumsqr(X[2, 1:]))
+        + dt * w.jerk * ca.sumsqr(j)
+        + w.speed_violation * (ca.sum2(sig_v) + _QUADRATIC_SHARE * ca.sumsqr(sig_v))
+        + w.position_violation * (ca.sum2(sig_s) + _QUADRATIC_SHARE * ca.sumsqr(sig_s))
+        + curvature / 2 * (X[1, n] - v_hat) ** 2
+    )
+    options: dict[str, Any] = {
+        "error_on_fail": False,
+        "inf": _HPIPM_INF,
+        "hpipm": dict(_HPIPM_OPTIONS),
+        "N": n,
+        "nx": [3] * (n + 1),
+        "nu": [3] * n + [0],
+        "ng": [_ROWS - 3] * n + [0],
+    }
+    return ca.qpsol("speed_qp", "hpipm", {"x": z, "p": p, "f": cost, "g": g}, options)
+
+
+# --------------------------------------------------------------------------------------------------------
+# Start profiles
+
+
+def _cap(problem: SpeedProblem, s_bar: FloatArray) -> FloatArray:
+    """``s_bar`` (relative to s0) capped by the bounds ahead of each knot, non-decreasing, ≥ 0."""
+    s_bar = np.minimum(s_bar, problem.s_bound() - problem.s0)
+    s_bar = np.minimum.accumulate(s_bar[::-1])[::-1]
+    return np.maximum(s_bar, 0.0)
+
+
+def _cold_start(problem: SpeedProblem) -> tuple[FloatArray, float]:
+    """Guesses of ``s_k − s0`` and ``v_N``: a forward–backward pass of the limit along the path, timed.
+
+    Along ``σ = s − s0`` the speed ``min(v_target, v_lim)`` (0 at ``s_stop``) is lowered to what braking at
+    ``a_min/2`` ahead of every point and accelerating at ``a_max/2`` from ``v0`` allow (running minima of
+    ``v² ± 2aσ``), but not below braking from ``v0`` at ``a_min``; the time along it is sampled at ``t_k``.
+    """
+    n, dt = problem.steps, problem.dt
+    stop = problem.s_stop - problem.s0
+    reach = n * dt * max(problem.v0, problem.v_target, float(np.max(problem.limit_v))) + 1.0
+    end = min(reach, stop)
+    if end <= 1e-6:
+        return np.zeros(n + 1), 0.0
+    sigma = np.linspace(0.0, end, _GUESS_POINTS)
+    v_cap = np.minimum(speed_limit(problem, problem.s0 + sigma)[0], problem.v_target)
+    if stop <= reach:
+        v_cap[-1] = 0.0
+    brake, accel = -0.5 * problem.a_min, max(0.5 * problem.a_max, 1e-3)
+    v2 = np.minimum.accumulate((v_cap**2 + 2 * brake * sigma)[::-1])[::-1] - 2 * brake * sigma
+    v2 = np.minimum(v2, np.minimum.accumulate(v2 - 2 * accel * sigma) + 2 * accel * sigma)
+    v2 = np.minimum(v2, problem.v0**2 + 2 * accel * sigma)
+    v2 = np.maximum(v2, problem.v0**2 + 2 * problem.a_min * sigma)
+    speed = np.sqrt(np.maximum(v2, 0.0))
+    mean = 0.5 * (speed[1:] + speed[:-1])
+    t_of_sigma = np.concatenate([[0.0], np.cumsum(np.diff(sigma) / np.maximum(mean, 1e-3))])
+    t = problem.t
+    s_bar = np.interp(t, t_of_sigma, sigma)
+    beyond = t > t_of_sigma[-1]
+    s_bar[beyond] = end + speed[-1] * (t[beyond] - t_of_sigma[-1])
+    s_bar = _cap(problem, s_bar)
+    v_end = float(np.interp(s_bar[-1], sigma, speed))
+    terms = _end_terms(problem, problem.s0 + float(s_bar[-1]))
+    if terms.rate is not None and terms.bound is not None and problem.s0 + s_bar[-1] >= terms.bound - 1e-6:
+        v_end = min(v_end, terms.rate)  # held at the moving bound: its speed
+    if s_bar[-1] >= stop - 1e-6:
+        v_end = 0.0  # held at the stop
+    return s_bar, v_end
+
+
+def _shifted(problem: SpeedProblem, previous: SpeedResult, shift: int) -> tuple[FloatArray, float]:
+    """``s_k − s0`` and ``v_N`` of ``previous`` advanced by ``shift`` of its steps, re-anchored at ``s0``."""
+    t_prev, s_prev, v_prev = previous.t, previous.s, previous.v
+    offset = shift * float(t_prev[1] - t_prev[0])
+    t = problem.t + offset
+    s_bar = np.interp(t, t_prev, s_prev)
+    beyond = t > t_prev[-1]
+    s_bar[beyond] = s_prev[-1] + max(float(v_prev[-1]), 0.0) * (t[beyond] - t_prev[-1])
+    s_bar -= float(np.interp(offset, t_prev, s_prev))
+    return _cap(problem, s_bar), max(float(np.interp(t[-1], t_prev, v_prev)), 0.0)
+
+
+# --------------------------------------------------------------------------------------------------------
+# Solver
+
+
+@dataclass
+class _Iterate:
+    """A profile (``s`` relative to s0) and its exact penalty function."""
+
+    jerk: FloatArray
+    s: FloatArray
+    v: FloatArray
+    a: FloatArray
+    merit: float
+
+
+def _iterate(problem: SpeedProblem, jerk: FloatArray) -> _Iterate:
+    s, v, a = integrate_jerk(problem.dt, 0.0, problem.v0, problem.a0, jerk)
+    return _Iterate(jerk=jerk, s=s, v=v, a=a, merit=objective(problem, s + problem.s0, v, a, jerk))
+
+
+def _true_limit(problem: SpeedProblem, s: FloatArray) -> FloatArray:
+    """The limit rows' true right-hand side at knots ``1 … N`` of ``s`` (relative to s0)."""
+    value, _ = speed_limit(problem, problem.s0 + s[1:])
+    value[-1] = end_speed_limit(problem, problem.s0 + float(s[-1]))
+    return value
+
+
+def _local_model(
+    problem: SpeedProblem, s_bar: FloatArray, v_end_guess: float
+) -> tuple[FloatArray, FloatArray, bool, FloatArray]:
+    """The linear model of the limit at knots ``1 … N`` of ``s_bar`` (relative to s0): ``v ≤ e + d·s``.
+
+    Returns ``(e, d)`` of shape ``(_PIECES, N)``; a row with ``e = +inf`` is unused. For ``k < N`` row 0 is
+    the segment holding ``s̄_k`` and rows 1 and 2 the segments behind and ahead where the kink between is
+    concave: there the minimum of the pieces *is* ``v_lim``, so the model stays exact across the kink (at a
+    convex kink the tangent alone lies below ``v_lim``, which is safe). At ``N`` row 0 is ``v_lim``'s
+    tangent and rows 1 and 2 linearise ``v_end``'s two terms (module docstring) around ``v_end_guess``, the
+    expected ``v_N`` [m/s]. Also returns whether those are tangents (exact at ``v_N = v_end_guess``) rather
+    than chords, and their curvature in ``v`` per unit multiplier, ``1/(ŵ + c)`` (0 for a chord or unused).
+    """
+    xs, ys = problem.limit_s - problem.s0, problem.limit_v
+    s = s_bar[1:]
+    n = s.size
+    e = np.full((_PIECES, n), np.inf)
+    d = np.zeros((_PIECES, n))
+    # segments −1 (before xs[0]) … m−1 (after xs[−1]); slopes[i + 1] is the slope of segment i
+    m = xs.size
+    slopes = np.concatenate([[0.0], np.diff(ys) / np.diff(xs), [0.0]])
+    seg = np.searchsorted(xs, s, side="right") - 1
+
+    def piece(i: NDArray[np.intp]) -> tuple[FloatArray, FloatArray]:
+        anchor = np.clip(i, 0, m - 1)
+        slope = slopes[i + 1]
+        return ys[anchor] - slope * xs[anchor], slope
+
+    e[0], d[0] = piece(seg)
+    behind = (seg >= 0) & (slopes[np.maximum(seg, 0) + 1] < slopes[np.maximum(seg, 0)])
+    if behind.any():
+        e[1, behind], d[1, behind] = piece(seg[behind] - 1)
+    ahead = seg <= m - 2
+    ahead &= slopes[np.minimum(seg, m - 2) + 2] < slopes[np.minimum(seg, m - 2) + 1]
+    if ahead.any():
+        e[2, ahead], d[2, ahead] = piece(seg[ahead] + 1)
+    # knot N: v_end. Its terms (v + c)² + 2b s ≤ K are convex in (s, v) (in s alone v_end is far too steep
+    # near a stop to linearise). (v + c)² is replaced by its tangent at v̂, the expected v_N (Newton: exact
+    # where v_N = v̂), or, when v̂ is below _NEWTON_MIN_SPEED, by its chord over [0, _NEWTON_MIN_SPEED]
+    # (exact at standstill, conservative up to that speed).
+    e[:, -1], d[:, -1] = np.inf, 0.0
+    s_end = float(s[-1])
+    terms = _end_terms(problem, problem.s0 + s_end)
+    b, c = terms.b, terms.c
+    limit, slope = speed_limit(problem, problem.s0 + s_end)
+    e[0, -1], d[0, -1] = float(limit) - float(slope) * s_end, float(slope)
+    exact = True
+    inverse = np.zeros(_PIECES)  # 1/(v̂ + c) of tangent rows: their curvature in v per unit multiplier
+
+    def row(i: int, speed: float, offset: float, energy: float) -> None:
+        """Row ``i`` at N: ``(w + c)² + 2b s ≤ energy`` for ``w = v − offset`` around ``w = speed``."""
+        nonlocal exact
+        if speed >= _NEWTON_MIN_SPEED:
+            e[i, -1] = offset + speed + (energy - (speed + c) ** 2) / (2 * (speed + c))
+            d[i, -1] = -b / (speed + c)
+            inverse[i] = 1.0 / (speed + c)
+        else:
+            exact = False
+            top = _NEWTON_MIN_SPEED
+            e[i, -1], d[i, -1] = offset + (energy - c * c) / (top + 2 * c), -2 * b / (top + 2 * c)
+
+    if problem.s0 + s_end >= problem.s_stop:  # beyond the stop already: the end state must be at rest
+        e[1, -1] = 0.0
+    elif terms.energy is not None:
+        row(1, v_end_guess, 0.0, terms.energy - 2.0 * b * problem.s0)
+    if terms.rate is not None and terms.bound is not None:
+        if problem.s0 + s_end >= terms.bound:  # at or beyond the moving bound: no faster than it
+            e[2, -1] = terms.rate
+        else:
+            row(2, v_end_guess - terms.rate, terms.rate, c * c + 2.0 * b * (terms.bound - problem.s0))
+    return e, d, exact, inverse
+
+
+class SpeedSolver:
+    """Solves :class:`SpeedProblem` s by SQP over HPIPM QPs built once per ``(N, Δt, weights)``.
+
+    Building a QP takes about 0.1 s (N = 80); up to ``max_cached`` are kept, least recently used dropped
+    first. Not thread-safe: use one solver per thread (see :func:`solve_speed`).
+
+    Args:
+        max_iterations: QPs per solve (SQP iterations), ≥ 1.
+        tolerance: agreement of the linearised limit with the limit, wherever the speed is near it, that
+            counts as converged [m/s], > 0.
+        max_cached: number of built QPs kept, ≥ 1.
+    """
+
+    def __init__(self, *, max_iterations: int = 5, tolerance: float = 1e-4, max_cached: int = 4) -> None:
+        if isinstance(max_iterations, bool) or not isinstance(max_iterations, int) or max_iterations < 1:
+            raise ValueError(f"max_iterations: must be an integer ≥ 1, got {max_iterations!r}")
+        if isinstance(tolerance, bool) or not isinstance(tolerance, int | float) or not 0 < tolerance < 1e300:
+            raise ValueError(f"tolerance: must be a finite number > 0, got {tolerance!r}")
+        if isinstance(max_cached, bool) or not isinstance(max_cached, int) or max_cached < 1:
+            raise ValueError(f"max_cached: must be an integer ≥ 1, got {max_cached!r}")
+        self._max_iterations = max_iterations
+        self._tolerance = float(tolerance)
+        self._max_cached = max_cached
+        self._qps: OrderedDict[tuple[int, float, SpeedWeights], Any] = OrderedDict()
+        self._build_count = 0
+
+    @property
+    def build_count(self) -> int:
+        """How many QPs this solver has built (one per new ``(N, Δt, weights)`` still in the cache)."""
+        return self._build_count
+
+    def _qp(self, problem: SpeedProblem) -> Any:
+        key = (problem.steps, problem.dt, problem.weights)
+        qp = self._qps.get(key)
+        if qp is None:
+            qp = self._qps[key] = _build_qp(*key)
+            self._build_count += 1
+            while len(self._qps) > self._max_cached:
+                self._qps.popitem(last=False)
+        else:
+            self._qps.move_to_end(key)
+        return qp
+
+    def solve(
+        self, problem: SpeedProblem, *, warm_start: SpeedResult | None = None, shift: int = 1
+    ) -> SpeedResult:
+        """Solve ``problem``; non-convergence is reported in ``result.info.status``, never raised.
+
+        Args:
+            problem: the request (validated on construction).
+            warm_start: a previous result (any horizon and Δt); its profile, advanced by ``shift`` of its
+                steps and re-anchored at ``problem.s0``, is the first point of linearisation (the QPs are
+                interior-point, so that point is all a warm start can carry).
+            shift: steps of ``warm_start`` elapsed since it was computed, ≥ 0.
+
+        Raises:
+            ValueError: ``problem`` is not a :class:`SpeedProblem`, ``warm_start`` not a
+                :class:`SpeedResult` (or ``None``), or ``shift`` not an integer ≥ 0.
+        """
+        start = time.perf_counter()
+        if not isinstance(problem, SpeedProblem):
+            raise ValueError(f"problem: expected SpeedProblem, got {type(problem).__name__}")
+        if warm_start is not None and not isinstance(warm_start, SpeedResult):
+            raise ValueError(f"warm_start: expected SpeedResult or None, got {type(warm_start).__name__}")
+        if isinstance(shift, bool) or not isinstance(shift, int | np.integer) or shift < 0:
+            raise ValueError(f"shift: must be an integer ≥ 0, got {shift!r}")
+
+        qp = self._qp(problem)
+        n = problem.steps
+        if warm_start is not None and warm_start.t.size >= 2:
+            (s_bar, v_end), origin = _shifted(problem, warm_start, int(shift)), "warm"
+        else:
+            (s_bar, v_end), origin = _cold_start(problem), "cold"
+        lbx, ubx, lbg, ubg = self._bounds(problem)
+
+        best: _Iterate | None = None
+        multipliers = np.zeros(_PIECES)  # of the end rows in the last QP
+        converged = False
+        qp_solves = ipm_iterations = 0
+        notes: list[str] = []
+        for _ in range(self._max_iterations):
+            e, d, exact_end, inverse = _local_model(problem, s_bar, v_end)
+            ubg[4 : 4 + _PIECES] = e
+            curvature = float(np.dot(multipliers, inverse))
+            try:
+                solution = qp(
+                    p=np.concatenate([[problem.v_target, curvature, v_end], d.ravel(order="F")]),
+                    lbx=lbx,
+                    ubx=ubx,
+                    lbg=lbg.ravel(order="F"),
+                    ubg=ubg.ravel(order="F"),
+                )
+            except RuntimeError as error:  # CasADi reports a crashed backend this way
+                notes.append(f"QP {qp_solves + 1} raised: {str(error).splitlines()[-1][:120]}")
+                break
+            stats = qp.stats()
+            qp_solves += 1
+            ipm_iterations += int(stats.get("iter_count", 0))
+            flag = int(stats.get("return_status", -1))
+            jerk = np.asarray(solution["x"], dtype=np.float64).ravel()[3 : 6 * n : 6]
+            if flag not in (_HPIPM_SUCCESS, _HPIPM_MAX_ITER) or not np.all(np.isfinite(jerk)):
+                notes.append(f"QP {qp_solves} failed (HPIPM flag {flag})")
+                break
+            if flag == _HPIPM_MAX_ITER:
+                notes.append(f"QP {qp_solves} stopped at HPIPM's iteration limit")
+            end_rows = slice(_ROWS * (n - 1) + 4, _ROWS * (n - 1) + 4 + _PIECES)
+            lam = np.asarray(solution["lam_g"], dtype=np.float64).ravel()[end_rows]
+            multipliers = np.maximum(np.nan_to_num(lam, nan=0.0, posinf=0.0, neginf=0.0), 0.0)
+            target = _iterate(problem, np.clip(jerk, -problem.jerk_max, problem.jerk_max))
+            no_worse = best is None or target.merit <= best.merit + _MERIT_SLACK * (1 + abs(best.merit))
+            if no_worse and self._model_error(problem, e, d, target, exact_end) <= self._tolerance:
+                best, converged = target, flag == _HPIPM_SUCCESS
+                break
+            candidate = target if best is None else self._line_search(problem, best, target)
+            if candidate is best:
+                notes.append("the line search found no decrease")
+                break
+            best, s_bar = candidate, candidate.s
+            # linearise v_end next at the boundary point below an over-shooting v_N
+            v_end = min(float(candidate.v[-1]), end_speed_limit(problem, problem.s0 + float(candidate.s[-1])))
+
+        if best is None:
+            status = SolverStatus.FAILED
+            jerk = braking_profile(problem)
+            notes.append("returned the braking profile (not a solution)")
+        else:
+            status = SolverStatus.SOLVED if converged else SolverStatus.SOLVED_INACCURATE
+            jerk = best.jerk
+            if not converged and not notes:
+                notes.append(f"the limit's linearisation had not converged after {qp_solves} QPs")
+        s, v, a = integrate_jerk(problem.dt, problem.s0, problem.v0, problem.a0, jerk)
+        e_v, e_s = _violations(problem, s, v)
+        speed_violation, position_violation = float(np.max(e_v)), float(np.max(e_s))
+        message = f"SQP from a {origin} start: {qp_solves} QPs, {ipm_iterations} HPIPM iterations"
+        if best is not None and max(speed_violation, position_violation) > _REPORTED_VIOLATION:
+            notes.append(
+                f"soft constraints violated by up to {speed_violation:.3g} m/s and {position_violation:.3g} m"
+            )
+        if notes:
+            message += "; " + "; ".join(notes)
+        info = SolveInfo(
+            status=status,
+            iterations=ipm_iterations,
+            solve_time_ms=(time.perf_counter() - start) * 1e3,
+            objective=best.merit if best is not None and status.ok else None,  # J of this very profile
+            message=message,
+        )
+        return SpeedResult(
+            info=info,
+            t=problem.t,
+            s=s,
+            v=v,
+            a=a,
+            jerk=np.array(jerk, dtype=np.float64),
+            speed_violation=speed_violation,
+            position_violation=position_violation,
+            max_violation=max(speed_violation, position_violation),
+            qp_solves=qp_solves,
+        )
+
+    @staticmethod
+    def _bounds(problem: SpeedProblem) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """``lbx, ubx`` (flat, in stage order) and ``lbg, ubg`` (rows × N; the limit rows' ``ubg`` unset)."""
+        n = problem.steps
+        a_lo, a_hi = problem.accel_bounds()
+        v_lo, v_lo_half = problem.speed_floor()
+        lower = np.empty((6, n))
+        upper = np.empty((6, n))
+        lower[0], upper[0] = -np.inf, np.inf  # s − s0
+        lower[1], upper[1] = v_lo[:n], np.inf
+        lower[2], upper[2] = a_lo[:n], a_hi[:n]
+        lower[:3, 0] = upper[:3, 0] = (0.0, problem.v0, problem.a0)
+        lower[3], upper[3] = -problem.jerk_max, problem.jerk_max
+        lower[4:], upper[4:] = 0.0, np.inf
+        lbx = np.concatenate([lower.ravel(order="F"), [-np.inf, v_lo[n], a_lo[n]]])
+        ubx = np.concatenate([upper.ravel(order="F"), [np.inf, np.inf, a_hi[n]]])
+        lbg = np.zeros((_ROWS, n))  # dynamics (= 0), half-step speed (≥ v_lo), limit and position (≤)
+        ubg = np.zeros((_ROWS, n))
+        lbg[3], ubg[3] = v_lo_half, np.inf
+        lbg[4:] = -np.inf
+        ubg[-1] = problem.s_bound()[1:] - problem.s0  # may be +inf
+        return lbx, ubx, lbg, ubg
+
+    @staticmethod
+    def _model_error(
+        problem: SpeedProblem, e: FloatArray, d: FloatArray, target: _Iterate, exact_end: bool
+    ) -> float:
+        """How far the QP's model of the limit was off at ``target``, where the speed is near the limit.
+
+        Knot N, a braking margin rather than a limit, gets ``_END_TOLERANCE_FACTOR`` times the tolerance, and
+        where a chord (conservative below ``_NEWTON_MIN_SPEED``) stood in for its tangent only an
+        over-estimate counts.
+        """
+        model = np.min(e + d * target.s[1:], axis=0)
+        true = _true_limit(problem, target.s)
+        near = target.v[1:] >= np.minimum(model, true) - _ACTIVE_BAND
+        error = np.abs(true - model)
+        if not exact_end:
+            error[-1] = max(model[-1] - true[-1], 0.0)
+        error[-1] /= _END_TOLERANCE_FACTOR
+        return float(np.max(error[near], initial=0.0))
+
+    @staticmethod
+    def _line_search(problem: SpeedProblem, current: _Iterate, target: _Iterate) -> _Iterate:
+        """The longest of ``_STEP_LENGTHS`` towards ``target`` that lowers the merit; ``current`` if none."""
+        for alpha in _STEP_LENGTHS:
+            if alpha == 1.0:
+                trial = target
+            else:
+                trial = _iterate(problem, current.jerk + alpha * (target.jerk - current.jerk))
+            if trial.merit < current.merit:
+                return trial
+        return current
+
+
+_thread_local = threading.local()
+
+
+def solve_speed(
+    problem: SpeedProblem, *, warm_start: SpeedResult | None = None, shift: int = 1
+) -> SpeedResult:
+    """Solve ``problem`` with a :class:`SpeedSolver` kept per thread (so built QPs are reused)."""
+    solver = getattr(_thread_local, "solver", None)
+    if solver is None:
+        solver = _thread_local.solver = SpeedSolver()
+    result: SpeedResult = solver.solve(problem, warm_start=warm_start, shift=shift)
+    return result

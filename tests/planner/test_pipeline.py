@@ -1,0 +1,78 @@
+"""The planning pipeline on small synthetic roads: every returned trajectory passes the checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planner.pipeline import plan, static_shapes
+from planner.problem import (
+    DynamicObstacle,
+    Ego,
+    Lane,
+    Options,
+    PlanningProblem,
+    PolygonObstacle,
+    Vehicle,
+)
+from planner.reference import build_reference
+from planner.roads import demo_problem, straight
+from planner.validation import trajectory_violations
+
+ROAD = straight(200.0, step=5.0)  # a coarse 5 m polyline
+EGO = Ego(x=10.0, y=0.0, heading=0.0, speed=8.0)
+OPTIONS = Options(target_speed=10.0)
+
+
+def _box(x0: float, x1: float, y0: float, y1: float) -> np.ndarray:
+    return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=float)
+
+
+def _checked(problem: PlanningProblem):  # type: ignore[no-untyped-def]
+    result = plan(problem)
+    ref = build_reference(problem.reference_line)
+    assert trajectory_violations(ref, problem, result.trajectory, static_shapes(problem)) == []
+    assert np.isfinite(result.trajectory.x).all()
+    return result
+
+
+def test_free_road_reaches_the_target_speed() -> None:
+    result = _checked(PlanningProblem(ROAD, Lane(3.5, 3.5), EGO, (), Vehicle(), OPTIONS))
+    assert result.status == "ok"
+    assert result.trajectory.v[-1] == pytest.approx(10.0, abs=0.2)
+    assert np.max(np.abs(result.trajectory.d)) < 0.2
+    assert result.diagnostics.lateral_qp.ok and result.diagnostics.speed.ok
+
+
+def test_blocked_road_stops_before_the_block() -> None:
+    wall = PolygonObstacle("wall", _box(60.0, 62.0, -4.0, 4.0))
+    result = _checked(PlanningProblem(ROAD, Lane(3.5, 3.5), EGO, (wall,), Vehicle(), OPTIONS))
+    assert result.status == "stopped"
+    assert result.trajectory.v[-1] == pytest.approx(0.0, abs=1e-3)
+    front = result.trajectory.x + 0.5 * Vehicle().length
+    assert np.all(front < 60.0)
+
+
+def test_parked_car_is_passed_on_the_side_with_room() -> None:
+    car = PolygonObstacle("car", _box(50.0, 55.0, -1.5, 0.5))
+    result = _checked(PlanningProblem(ROAD, Lane(5.0, 3.5), EGO, (car,), Vehicle(), OPTIONS))
+    assert result.status == "ok"
+    passing = (result.trajectory.x > 48.0) & (result.trajectory.x < 57.0)
+    assert passing.any() and np.all(result.trajectory.d[passing] > 0.5 + Vehicle().width / 2)
+
+
+def test_slow_leader_without_room_to_pass_is_followed() -> None:
+    t = np.arange(0.0, 8.01, 0.5)
+    lead = DynamicObstacle("lead", 4.5, 1.8, np.column_stack((t, 30.0 + 3.0 * t, 0 * t, 0 * t)))
+    result = _checked(PlanningProblem(ROAD, Lane(1.8, 1.8), EGO, (lead,), Vehicle(), OPTIONS))
+    assert result.status == "ok"
+    gap = (30.0 + 3.0 * result.trajectory.t) - result.trajectory.x
+    assert np.all(gap > Vehicle().length)  # centre-to-centre, both 4.5 m long
+    assert result.trajectory.v[-1] < 5.0
+
+
+def test_demo_u_turn_plans_around_the_corner() -> None:
+    result = _checked(demo_problem())
+    assert result.status == "ok"
+    assert result.diagnostics.candidates.generated == demo_problem().options.num_candidates
+    assert set(result.diagnostics.timing_ms) >= {"reference", "candidates", "lateral", "speed", "total"}

@@ -1,0 +1,538 @@
+"""Speed profile SQP: tracks the target, keeps limits, stops, follows, reports what it cannot keep,
+warm-starts, raises on misuse, agrees with IPOPT, and every profile meets the dynamics and the boxes."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+from typing import Any
+
+import casadi as ca
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import solvers.speed as speed
+from solvers.result import SolverStatus
+from solvers.speed import (
+    SpeedProblem,
+    SpeedResult,
+    SpeedSolver,
+    SpeedWeights,
+    braking_profile,
+    end_speed_limit,
+    integrate_jerk,
+    objective,
+    solve_speed,
+    speed_limit,
+)
+
+#: a solver shared by the tests (a QP is built once per (N, Δt, weights))
+SOLVER = SpeedSolver(max_cached=16)
+
+
+def _problem(**kw: Any) -> SpeedProblem:
+    """80 steps of 0.1 s, 10 → 15 m/s on a 30 m/s road; ``kw`` overrides."""
+    args: dict[str, Any] = {
+        "dt": 0.1,
+        "steps": 80,
+        "v0": 10.0,
+        "limit_s": [0.0, 1000.0],
+        "limit_v": [30.0, 30.0],
+        "v_target": 15.0,
+        "a_min": -5.0,
+        "a_max": 2.0,
+        "jerk_max": 2.0,
+    }
+    args.update(kw)
+    return SpeedProblem(**args)
+
+
+def _assert_valid(problem: SpeedProblem, result: SpeedResult) -> None:
+    """NaN-free, shapes, initial state, exact dynamics, jerk and acceleration boxes, speed floor."""
+    n, dt = problem.steps, problem.dt
+    for name in ("t", "s", "v", "a"):
+        values = getattr(result, name)
+        assert values.shape == (n + 1,), name
+        assert np.all(np.isfinite(values)), name
+    assert result.jerk.shape == (n,) and np.all(np.isfinite(result.jerk))
+    assert np.allclose(result.t, np.arange(n + 1) * dt)
+    s, v, a, j = result.s, result.v, result.a, result.jerk
+    assert (s[0], v[0], a[0]) == (problem.s0, problem.v0, problem.a0)
+    assert np.max(np.abs(a[1:] - a[:-1] - j * dt)) < 1e-6
+    assert np.max(np.abs(v[1:] - v[:-1] - a[:-1] * dt - j * dt**2 / 2)) < 1e-6
+    assert np.max(np.abs(s[1:] - s[:-1] - v[:-1] * dt - a[:-1] * dt**2 / 2 - j * dt**3 / 6)) < 1e-6
+    assert np.max(np.abs(j)) <= problem.jerk_max * (1 + 1e-9)
+    a_lo, a_hi = problem.accel_bounds()
+    assert np.all(a[1:] >= a_lo[1:] - 1e-6) and np.all(a[1:] <= a_hi[1:] + 1e-6)
+    floor, _ = problem.speed_floor()
+    assert np.all(v >= floor - 1e-6)
+    assert math.isfinite(result.max_violation) and result.max_violation >= 0
+    assert result.max_violation == max(result.speed_violation, result.position_violation)
+
+
+def _limit_excess(problem: SpeedProblem, result: SpeedResult) -> float:
+    limit, _ = speed_limit(problem, result.s)
+    return float(np.max(result.v[1:] - limit[1:]))
+
+
+# --------------------------------------------------------------------------------------------------------
+# Behaviour
+
+
+def test_free_road_reaches_the_target_speed_within_the_limits() -> None:
+    problem = _problem()
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.info.status is SolverStatus.SOLVED and result.ok
+    assert result.max_violation == 0.0
+    assert abs(result.v[-1] - 15.0) < 0.1
+    assert abs(result.a[-1]) < 0.05
+    assert np.max(result.a) <= problem.a_max + 1e-9
+    assert np.max(result.a) > 1.0  # it does accelerate, not crawl
+    assert np.all(np.diff(result.v) >= -1e-9)  # no overshoot-and-return
+    assert result.info.objective == pytest.approx(
+        objective(problem, result.s, result.v, result.a, result.jerk)
+    )
+
+
+def test_curvature_dip_is_kept_smoothly() -> None:
+    # 20 m/s road with an 8 m/s curve between s = 40 and 60 m
+    problem = _problem(v0=15.0, limit_s=[0, 30, 40, 60, 70, 1000], limit_v=[20, 20, 8, 8, 20, 20])
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.info.status is SolverStatus.SOLVED
+    assert _limit_excess(problem, result) <= 1e-3
+    in_curve = (result.s >= 40) & (result.s <= 60)
+    assert in_curve.sum() >= 10
+    assert np.all(result.v[in_curve] <= 8 + 1e-3)
+    assert np.max(result.v[in_curve]) > 7.5  # not needlessly slow
+    assert result.v[-1] > result.v[np.flatnonzero(in_curve)[-1]]  # speeds up again after the curve
+    # smooth: the jerk changes sign only a few times (slow down, hold, speed up)
+    signs = np.sign(result.jerk[np.abs(result.jerk) > 1e-3])
+    assert np.count_nonzero(np.diff(signs)) <= 6
+
+
+@pytest.mark.parametrize("s_stop", [25.0, 40.0])
+def test_stops_before_s_stop(s_stop: float) -> None:
+    problem = _problem(s_stop=s_stop)
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.info.status is SolverStatus.SOLVED
+    assert np.max(result.s) <= s_stop + 1e-3
+    assert result.s[-1] > s_stop - 1e-2  # it drives up to the stop point (v_target is 15 m/s) …
+    assert abs(result.v[-1]) < 1e-2  # … and stops there
+    assert np.all(result.v >= -1e-6)
+    if s_stop == 25.0:  # within reach: stopped before the end, and stays stopped
+        stopped = np.flatnonzero(result.v < 1e-3)
+        assert stopped.size >= 3 and np.all(np.abs(result.a[stopped[0] + 1 :]) < 1e-2)
+
+
+def test_stop_line_holds_against_a_high_target_over_a_long_horizon() -> None:
+    # the multipliers grow with v_target and the horizon; the default penalties must stay above them
+    problem = _problem(steps=200, v0=20.0, v_target=40.0, limit_v=[40.0, 40.0], s_stop=120.0)
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.info.status is SolverStatus.SOLVED
+    assert result.max_violation <= 1e-6
+    assert np.max(result.s) <= 120.0 + 1e-6 and abs(result.v[-1]) < 1e-2
+
+
+def test_stop_beyond_the_horizon_leaves_room_to_brake() -> None:
+    # the stop lies 110 m ahead: out of reach in 8 s at 15 m/s, but the end state must be able to brake
+    problem = _problem(v0=15.0, v_target=20.0, s_stop=130.0)
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    b = -problem.a_min / 2
+    c = b * b / (2 * problem.jerk_max)
+    braking = (result.v[-1] ** 2 + 2 * c * result.v[-1]) / (2 * b)
+    assert result.s[-1] + braking <= 130.0 + 0.05  # the end row converges to 100 × the tolerance
+    assert result.v[-1] > 5.0  # and it is not stopped early
+    assert end_speed_limit(problem, 130.0) == 0.0
+
+
+def test_follows_a_moving_bound() -> None:
+    t = np.arange(81) * 0.1
+    s_upper = 20.0 + 8.0 * t  # a leader at 8 m/s, 20 m ahead (gap already subtracted)
+    problem = _problem(v0=12.0, s_upper=s_upper)
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.info.status is SolverStatus.SOLVED
+    assert np.all(result.s <= s_upper + 1e-3)
+    assert result.max_violation <= 1e-6
+    assert abs(result.v[-1] - 8.0) < 0.3  # settles at the leader's speed
+    assert s_upper[-1] - result.s[-1] < 5.0  # and close behind
+
+
+def test_initial_speed_above_the_limit_is_best_effort_with_the_violation_reported() -> None:
+    problem = _problem(v0=25.0, limit_v=[10.0, 10.0])
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.ok
+    assert result.speed_violation == pytest.approx(25.0 - 10.0 - 2.0 * 0.1**2 / 2 * 5, abs=0.1)
+    assert result.max_violation == result.speed_violation and result.position_violation == 0.0
+    assert np.min(result.a) == pytest.approx(problem.a_min, abs=1e-6)  # full braking
+    below = np.flatnonzero(result.v <= 10.0)
+    assert below.size and result.v[below[0] - 1] > 10.0 and np.all(np.diff(result.v[: below[0]]) < 0)
+    assert "violated" in result.info.message
+
+
+def test_stop_point_too_close_brakes_fully_and_reports_the_overshoot() -> None:
+    problem = _problem(v0=20.0, s_stop=20.0)
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.ok
+    assert np.min(result.a) == pytest.approx(problem.a_min, abs=1e-6)
+    brake_s, _, _ = integrate_jerk(problem.dt, 0.0, 20.0, 0.0, braking_profile(problem))
+    assert result.s[-1] == pytest.approx(brake_s[-1], abs=0.05)  # as short as full braking gets
+    assert result.position_violation == pytest.approx(result.s[-1] - 20.0, abs=1e-9)
+    assert abs(result.v[-1]) < 1e-3 and np.all(result.v >= -1e-6)  # stops, never reverses
+
+
+def test_bound_already_behind_the_vehicle_is_best_effort() -> None:
+    t = np.arange(81) * 0.1
+    problem = _problem(s_upper=-5.0 + 3.0 * t)
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.ok and result.position_violation > 0
+    assert np.all(result.v >= -1e-6)
+    stopped = result.v < 1e-3
+    assert np.all(np.abs(result.a[stopped][5:]) < 1e-2)  # stays stopped, no creeping back and forth
+
+
+def test_acceleration_outside_the_box_is_a_measurement_not_an_error() -> None:
+    problem = _problem(v0=8.0, a0=-7.0, jerk_max=1.0)  # brakes harder than a_min = −5
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.ok
+    assert np.all(result.a[1:] >= problem.a0)  # it can only release at the jerk limit
+    assert result.a[-1] >= problem.a_min
+    problem = _problem(v0=0.5, a0=-3.0, jerk_max=1.0)  # a reversal is unavoidable
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.ok and np.min(result.v) < 0
+    floor, _ = problem.speed_floor()
+    assert np.min(result.v - floor) >= -1e-6
+
+
+def test_frame_offset_does_not_change_the_profile() -> None:
+    base = _problem(v0=15.0, limit_s=[0, 30, 40, 60, 70, 1000], limit_v=[20, 20, 8, 8, 20, 20], s_stop=90.0)
+    shifted = replace(base, s0=5000.0, limit_s=np.asarray(base.limit_s) + 5000.0, s_stop=5090.0)
+    a, b = SOLVER.solve(base), SOLVER.solve(shifted)
+    assert np.max(np.abs((b.s - 5000.0) - a.s)) < 1e-6
+    assert np.max(np.abs(b.v - a.v)) < 1e-6
+
+
+def test_agrees_with_ipopt_on_a_smooth_limit() -> None:
+    xs = np.arange(0.0, 200.0, 1.0)
+    limit = 20 - 12 * np.exp(-(((xs - 60) / 12) ** 2))
+    problem = _problem(dt=0.1, steps=60, v0=15.0, limit_s=xs, limit_v=limit, v_target=18.0, jerk_max=3.0)
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.info.status is SolverStatus.SOLVED
+
+    n, dt, w = problem.steps, problem.dt, problem.weights
+    opti = ca.Opti()
+    jerk = opti.variable(n)
+    s, v, a = [problem.s0], [problem.v0], [problem.a0]
+    for k in range(n):
+        s.append(s[k] + v[k] * dt + a[k] * dt**2 / 2 + jerk[k] * dt**3 / 6)
+        v.append(v[k] + a[k] * dt + jerk[k] * dt**2 / 2)
+        a.append(a[k] + jerk[k] * dt)
+    v_lim = ca.interpolant("v_lim", "linear", [xs], limit)
+    cost = dt * w.jerk * ca.sumsqr(jerk)
+    for k in range(1, n + 1):
+        cost += dt * (w.speed * (v[k] - problem.v_target) ** 2 + w.acceleration * a[k] ** 2)
+        opti.subject_to(v[k] <= v_lim(s[k]))
+        opti.subject_to(v[k] >= 0)
+        opti.subject_to(opti.bounded(problem.a_min, a[k], problem.a_max))
+    opti.subject_to(opti.bounded(-problem.jerk_max, jerk, problem.jerk_max))
+    opti.minimize(cost)
+    opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "tol": 1e-10, "sb": "yes"})
+    solution = opti.solve()
+    v_ipopt = np.array([float(solution.value(x)) for x in v])
+    assert result.info.objective == pytest.approx(float(solution.value(cost)), rel=1e-5)
+    assert np.max(np.abs(result.v - v_ipopt)) < 1e-3
+
+
+# --------------------------------------------------------------------------------------------------------
+# Build once, warm start, failures
+
+
+def test_the_qp_is_built_once_per_size_step_and_weights() -> None:
+    solver = SpeedSolver(max_cached=2)
+    solver.solve(_problem())
+    solver.solve(_problem(v0=3.0, s_stop=50.0))
+    assert solver.build_count == 1
+    solver.solve(_problem(weights=SpeedWeights(jerk=1.0)))
+    solver.solve(_problem(steps=40))  # third key: the least recently used is dropped
+    assert solver.build_count == 3
+    solver.solve(_problem(steps=40))
+    assert solver.build_count == 3
+    solver.solve(_problem())
+    assert solver.build_count == 4
+
+
+def test_warm_start_from_the_shifted_previous_solution() -> None:
+    xs = np.arange(0.0, 400.0, 0.5)
+    kappa = np.clip(np.minimum((xs - 60) / 15, (140 - xs) / 15), 0, 1) / 25 + 0.002 * np.sin(xs / 3)
+    limit = np.minimum(16.0, np.sqrt(2.0 / np.maximum(np.abs(kappa), 1e-6)))
+
+    def problem_at(travelled: float, v0: float, a0: float) -> SpeedProblem:
+        return _problem(v0=v0, a0=a0, limit_s=xs - travelled, limit_v=limit, jerk_max=3.0, a_min=-4.0)
+
+    solver = SpeedSolver()
+    previous = solver.solve(problem_at(0.0, 10.0, 0.0))
+    travelled, cold_qps, warm_qps, cold_ms, warm_ms = 0.0, [], [], [], []
+    for _ in range(30):  # the vehicle follows the plan for one step, the path is re-anchored at it
+        travelled += previous.s[1] - previous.s[0]
+        problem = problem_at(travelled, float(previous.v[1]), float(previous.a[1]))
+        cold = solver.solve(problem)
+        warm = solver.solve(problem, warm_start=previous, shift=1)
+        _assert_valid(problem, warm)
+        assert warm.info.status is SolverStatus.SOLVED and "warm" in warm.info.message
+        # the rippled limit has several local optima; the warm one stays close to the cold one's cost
+        assert warm.info.objective is not None and cold.info.objective is not None
+        assert warm.info.objective <= 1.02 * cold.info.objective
+        cold_qps.append(cold.qp_solves)
+        warm_qps.append(warm.qp_solves)
+        cold_ms.append(cold.info.solve_time_ms)
+        warm_ms.append(warm.info.solve_time_ms)
+        previous = warm
+    assert sum(warm_qps) <= sum(cold_qps)
+    assert max(warm_qps) <= 2
+    # not slower (loosely: timing on a shared machine is noisy)
+    assert np.median(warm_ms) <= 1.5 * np.median(cold_ms) + 2.0
+
+
+def test_warm_start_from_the_solution_itself_is_one_qp_to_the_same_profile() -> None:
+    problem = _problem(
+        v0=15.0, limit_s=[0, 30, 40, 60, 70, 1000], limit_v=[20, 20, 8, 8, 20, 20], s_stop=150.0
+    )
+    cold = SOLVER.solve(problem)
+    warm = SOLVER.solve(problem, warm_start=cold, shift=0)
+    assert warm.qp_solves == 1 and warm.info.status is SolverStatus.SOLVED
+    assert np.max(np.abs(warm.v - cold.v)) < 1e-6
+
+
+def test_warm_start_with_another_horizon_and_no_shift() -> None:
+    problem = _problem(v0=15.0, limit_s=[0, 30, 40, 60, 70, 1000], limit_v=[20, 20, 8, 8, 20, 20])
+    first = SOLVER.solve(replace(problem, steps=40, dt=0.2))
+    again = SOLVER.solve(problem, warm_start=first, shift=0)
+    _assert_valid(problem, again)
+    assert again.info.status is SolverStatus.SOLVED
+    assert _limit_excess(problem, again) <= 1e-3
+
+
+def test_a_failing_qp_returns_the_braking_profile(monkeypatch: pytest.MonkeyPatch) -> None:
+    class Broken:
+        def __call__(self, **kwargs: Any) -> dict[str, Any]:
+            raise RuntimeError("backend crashed")
+
+        def stats(self) -> dict[str, Any]:
+            return {}
+
+    solver = SpeedSolver()
+    monkeypatch.setattr(speed, "_build_qp", lambda *args: Broken())
+    problem = _problem(v0=12.0, s_stop=10.0)
+    result = solver.solve(problem)
+    _assert_valid(problem, result)
+    assert result.info.status is SolverStatus.FAILED and not result.ok
+    assert result.info.objective is None
+    assert "braking profile" in result.info.message and "backend crashed" in result.info.message
+    assert np.allclose(result.jerk, braking_profile(problem))
+    assert result.position_violation > 0  # the fallback ignores s_stop, and says so
+
+
+def test_a_qp_without_a_finite_solution_returns_the_braking_profile(monkeypatch: pytest.MonkeyPatch) -> None:
+    class Diverging:
+        def __call__(self, **kwargs: Any) -> dict[str, Any]:
+            return {"x": ca.DM.nan(6 * 80 + 3, 1), "lam_g": ca.DM.nan(8 * 80, 1)}
+
+        def stats(self) -> dict[str, Any]:
+            return {"return_status": 3, "iter_count": 7}
+
+    monkeypatch.setattr(speed, "_build_qp", lambda *args: Diverging())
+    problem = _problem()
+    result = SpeedSolver().solve(problem)
+    _assert_valid(problem, result)
+    assert result.info.status is SolverStatus.FAILED
+    assert "HPIPM flag 3" in result.info.message
+
+
+@pytest.mark.parametrize(
+    ("v0", "a0", "jerk_max", "dt"),
+    [
+        (20.0, 0.0, 2.0, 0.1),
+        (30.0, 1.5, 1.0, 0.2),
+        (3.0, -4.5, 6.0, 0.05),
+        (0.4, -3.6, 1.0, 0.1),
+        (0.0, 0.0, 2.0, 0.1),
+    ],
+)
+def test_braking_profile_stops_within_the_jerk_limit(
+    v0: float, a0: float, jerk_max: float, dt: float
+) -> None:
+    problem = _problem(v0=v0, a0=a0, jerk_max=jerk_max, dt=dt, steps=400)
+    jerk = braking_profile(problem)
+    _, v, a = integrate_jerk(dt, 0.0, v0, a0, jerk)
+    assert np.max(np.abs(jerk)) <= jerk_max * (1 + 1e-9)
+    assert abs(v[-1]) < 1e-9 and abs(a[-1]) < 1e-9
+    floor, _ = problem.speed_floor()
+    assert np.all(v >= floor - 1e-9)
+    if a0 >= 0:
+        assert np.all(v >= -1e-9)
+    if v0 >= 20:
+        assert np.min(a) == pytest.approx(problem.a_min)  # full braking
+
+
+def test_solve_speed_keeps_a_solver_per_thread() -> None:
+    problem = _problem(steps=20)
+    first, second = solve_speed(problem), solve_speed(problem)
+    assert first.ok and second.ok
+    assert np.allclose(first.v, second.v)
+
+
+# --------------------------------------------------------------------------------------------------------
+# Misuse
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"dt": -0.1}, "dt"),
+        ({"dt": 0.0}, "dt"),
+        ({"dt": math.inf}, "dt"),
+        ({"dt": "0.1"}, "dt"),
+        ({"steps": 0}, "steps"),
+        ({"steps": 10.0}, "steps"),
+        ({"steps": True}, "steps"),
+        ({"steps": speed.MAX_STEPS + 1}, "steps"),
+        ({"v0": -1.0}, "v0"),
+        ({"v0": math.nan}, "v0"),
+        ({"a0": math.inf}, "a0"),
+        ({"s0": math.nan}, "s0"),
+        ({"v_target": -1.0}, "v_target"),
+        ({"a_min": 0.0}, "a_min"),
+        ({"a_max": -1.0}, "a_max"),
+        ({"jerk_max": 0.0}, "jerk_max"),
+        ({"jerk_max": math.inf}, "jerk_max"),
+        ({"s_stop": math.nan}, "s_stop"),
+        ({"s_stop": -math.inf}, "s_stop"),
+        ({"limit_s": []}, "limit_s"),
+        ({"limit_s": [0.0, 0.0]}, "limit_s"),
+        ({"limit_s": [[0.0, 1.0]]}, "limit_s"),
+        ({"limit_s": [0.0, math.inf]}, "limit_s"),
+        ({"limit_v": [30.0]}, "limit_v"),
+        ({"limit_v": [30.0, math.nan]}, "limit_v"),
+        ({"limit_v": [30.0, -1.0]}, "limit_v"),
+        ({"limit_v": ["a", "b"]}, "limit_v"),
+        ({"s_upper": np.zeros(80)}, "s_upper"),
+        ({"s_upper": np.full(81, -math.inf)}, "s_upper"),
+        ({"s_upper": np.full(81, math.nan)}, "s_upper"),
+        ({"weights": {"speed": 1.0}}, "weights"),
+    ],
+)
+def test_misuse_raises_value_error(change: dict[str, Any], match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        _problem(**change)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [{"speed": 0.0}, {"jerk": -1.0}, {"acceleration": math.nan}, {"speed_violation": 0.0}, {"jerk": True}],
+)
+def test_bad_weights_raise(kwargs: dict[str, Any]) -> None:
+    with pytest.raises(ValueError, match="weights"):
+        SpeedWeights(**kwargs)
+
+
+def test_bad_solver_arguments_raise() -> None:
+    with pytest.raises(ValueError, match="problem"):
+        SOLVER.solve("not a problem")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="warm_start"):
+        SOLVER.solve(_problem(), warm_start=object())  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="shift"):
+        SOLVER.solve(_problem(), shift=-1)
+    for kwargs in ({"max_iterations": 0}, {"tolerance": 0.0}, {"max_cached": 0}, {"tolerance": math.nan}):
+        with pytest.raises(ValueError):
+            SpeedSolver(**kwargs)
+
+
+def test_problem_arrays_are_read_only_copies() -> None:
+    limit_v = np.array([30.0, 30.0])
+    problem = _problem(limit_v=limit_v, s_upper=np.full(81, np.inf))
+    limit_v[0] = 1.0
+    assert problem.limit_v[0] == 30.0
+    with pytest.raises(ValueError):
+        problem.limit_v[0] = 2.0
+    assert problem.s_upper is not None and not problem.s_upper.flags.writeable
+
+
+# --------------------------------------------------------------------------------------------------------
+# Property: feasible problems are solved within their constraints
+
+
+@st.composite
+def feasible_problems(draw: st.DrawFn) -> SpeedProblem:
+    """Random limits, a start below all of them, and stop points and leaders beyond full braking."""
+    steps, dt = draw(st.sampled_from([(40, 0.1), (60, 0.2)]))
+    points = draw(st.integers(min_value=1, max_value=8))
+    gaps = draw(st.lists(st.floats(0.5, 60.0), min_size=points, max_size=points))
+    limit_s = np.cumsum(gaps) - draw(st.floats(0.0, 30.0))
+    limit_v = np.array(draw(st.lists(st.floats(2.0, 30.0), min_size=points, max_size=points)))
+    v0 = draw(st.floats(0.0, 1.0)) * float(np.min(limit_v))
+    a_min = draw(st.floats(-8.0, -1.0))
+    jerk_max = draw(st.floats(0.5, 8.0))
+    # braking now, but no harder than releasing the brake can undo before v = 0
+    a0 = -draw(st.floats(0.0, 1.0)) * min(-0.5 * a_min, math.sqrt(2 * jerk_max * v0))
+    kw: dict[str, Any] = {}
+    base = SpeedProblem(
+        dt=dt, steps=steps, v0=v0, a0=a0, limit_s=limit_s, limit_v=limit_v, v_target=0.0, a_min=a_min,
+        a_max=2.0, jerk_max=jerk_max,
+    )  # fmt: skip
+    stop_s, _, _ = integrate_jerk(dt, 0.0, v0, a0, braking_profile(base))
+    if draw(st.booleans()):
+        kw["s_stop"] = float(stop_s[-1] + draw(st.floats(0.5, 100.0)))
+    if draw(st.booleans()):
+        t = np.arange(steps + 1) * dt
+        s_upper = stop_s[-1] + draw(st.floats(0.5, 50.0)) + draw(st.floats(0.0, 20.0)) * t
+        kw["s_upper"] = np.where(np.arange(steps + 1) % 7 == 3, np.inf, s_upper)
+    return replace(
+        base,
+        v_target=draw(st.floats(0.0, 35.0)),
+        a_max=draw(st.floats(0.5, 3.0)),
+        s0=draw(st.floats(-100.0, 100.0)),
+        limit_s=limit_s + 0.0,
+        **kw,
+    )
+
+
+@settings(max_examples=25, deadline=None)
+@given(feasible_problems())
+def test_property_feasible_problems_are_solved_within_their_constraints(problem: SpeedProblem) -> None:
+    # the frame offset s0 moves everything
+    problem = replace(
+        problem,
+        limit_s=problem.limit_s + problem.s0,
+        s_stop=problem.s_stop + problem.s0,
+        s_upper=None if problem.s_upper is None else problem.s_upper + problem.s0,
+    )
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.ok, result.info.message
+    assert result.max_violation <= 1e-3, result.info.message
+    assert _limit_excess(problem, result) <= 1e-3
+    assert np.all(result.s <= problem.s_bound() + 1e-3)
+    assert np.all(result.v >= -1e-6)
+    assert result.info.objective is not None and math.isfinite(result.info.objective)
+
+
+def test_timing_is_reported() -> None:
+    start = time.perf_counter()
+    result = SOLVER.solve(_problem())
+    elapsed_ms = (time.perf_counter() - start) * 1e3
+    assert 0 < result.info.solve_time_ms <= elapsed_ms + 1e-6
+    assert result.info.iterations > 0 and result.qp_solves >= 1
