@@ -89,9 +89,14 @@ margin rather than a limit) — status ``solved`` — or after ``max_iterations`
 (``solved_inaccurate``: the best iterate, a valid profile whose violations are reported truthfully; it
 happens where a sharp convex kink of ``v_lim``, a V-shaped dip, has to be crossed by many knots, one or two
 per iteration). ``s̄`` starts from the previous solution shifted in time (warm start) or from a
-forward–backward pass of the limit along the path, timed (cold start). The returned profile is
-re-integrated from the jerks with the formulas above, so it meets the dynamics to rounding error whatever
-the QP's accuracy.
+forward–backward pass of the limit along the path, timed (cold start). The problem is not convex, and at
+a sharp dip the SQP can end in a local minimum of the penalty function that violates the limit. So when
+the result violates a soft constraint although :func:`braking_profile` (a full stop) meets them all, the
+SQP runs once more from that stop and the better result is kept; if the violation remains, the status is
+``solved_inaccurate`` and the message says so. A QP that HPIPM stops early (iteration limit, minimum step)
+is used if its iterate is finite and within the boxes, never as ``solved``; otherwise, and if CasADi raises,
+the solve fails: status ``failed`` and the braking profile. The returned profile is re-integrated from the
+jerks with the formulas above, so it meets the dynamics to rounding error whatever the QP's accuracy.
 
 Internally ``s`` is measured from ``s0``, so the QP's numbers stay small wherever the path frame starts.
 """
@@ -141,8 +146,10 @@ _HPIPM_OPTIONS: dict[str, Any] = {
     "res_d_max": 1e-7,
     "res_m_max": 1e-7,
 }
-#: HPIPM's return flags: converged, iteration limit (the iterate is still used)
-_HPIPM_SUCCESS, _HPIPM_MAX_ITER = 0, 1
+#: HPIPM's return flags: converged; usable if the iterate is finite and within the boxes (converged,
+#: iteration limit, minimum step length)
+_HPIPM_SUCCESS = 0
+_HPIPM_USABLE = (0, 1, 2)
 #: a limit row counts as active when the speed is within this of the limit or its model [m/s]
 _ACTIVE_BAND = 1e-3
 #: step lengths the line search tries
@@ -161,6 +168,8 @@ _END_TOLERANCE_FACTOR = 100.0
 _MERIT_SLACK = 1e-6
 #: violations below this are rounding, not worth a word in the message
 _REPORTED_VIOLATION = 1e-6
+#: a violation above this is checked against a full stop, and the SQP restarted from it if that meets all
+_RESTORE_VIOLATION = 1e-4
 #: rows per stage: 3 dynamics, the half-step speed, the limit pieces, the position
 _ROWS = 5 + _PIECES
 
@@ -342,7 +351,10 @@ class SpeedProblem:
     def speed_floor(self) -> tuple[FloatArray, FloatArray]:
         """``v_lo`` [m/s] at the knots (shape (N + 1,)) and half-way through the steps (shape (N,)).
 
-        0, or less where ``a0 < 0`` makes a negative speed unavoidable (the fastest release of the brake).
+        0, or less where ``a0 < 0`` makes a negative speed unavoidable: the speed under the fastest release
+        of the brake, ``a_k = min(a0 + j_max t_k, 0)``. That is feasible, so the bound is safe; on the grid it
+        is not always tight (a release overshooting to ``a > 0`` for one step can lose up to ``|a0|·Δt/2``
+        less speed).
         """
         if self.a0 >= 0:
             return np.zeros(self.steps + 1), np.zeros(self.steps)
@@ -714,6 +726,34 @@ def _iterate(problem: SpeedProblem, jerk: FloatArray) -> _Iterate:
     return _Iterate(jerk=jerk, s=s, v=v, a=a, merit=objective(problem, s + problem.s0, v, a, jerk))
 
 
+def _within_boxes(problem: SpeedProblem, iterate: _Iterate, tol: float = 1e-6) -> bool:
+    """Whether an iterate keeps the hard acceleration and speed bounds (its jerks are clipped already)."""
+    a_lo, a_hi = problem.accel_bounds()
+    floor, _ = problem.speed_floor()
+    return bool(
+        np.all(iterate.a[1:] >= a_lo[1:] - tol)
+        and np.all(iterate.a[1:] <= a_hi[1:] + tol)
+        and np.all(iterate.v >= floor - tol)
+    )
+
+
+@dataclass
+class _Run:
+    """What one SQP run produced."""
+
+    best: _Iterate | None
+    converged: bool
+    qp_solves: int
+    ipm_iterations: int
+    notes: list[str]
+
+
+def _max_violation(problem: SpeedProblem, iterate: _Iterate) -> float:
+    """The largest violation of ``v_lim``, ``v ≥ 0`` and ``s_bound`` by an iterate."""
+    e_v, e_s = _violations(problem, iterate.s + problem.s0, iterate.v)
+    return float(max(np.max(e_v), np.max(e_s)))
+
+
 def _true_limit(problem: SpeedProblem, s: FloatArray) -> FloatArray:
     """The limit rows' true right-hand side at knots ``1 … N`` of ``s`` (relative to s0)."""
     value, _ = speed_limit(problem, problem.s0 + s[1:])
@@ -862,58 +902,29 @@ class SpeedSolver:
             raise ValueError(f"shift: must be an integer ≥ 0, got {shift!r}")
 
         qp = self._qp(problem)
-        n = problem.steps
         if warm_start is not None and warm_start.t.size >= 2:
             (s_bar, v_end), origin = _shifted(problem, warm_start, int(shift)), "warm"
         else:
             (s_bar, v_end), origin = _cold_start(problem), "cold"
-        lbx, ubx, lbg, ubg = self._bounds(problem)
-
-        best: _Iterate | None = None
-        multipliers = np.zeros(_PIECES)  # of the end rows in the last QP
-        converged = False
-        qp_solves = ipm_iterations = 0
-        notes: list[str] = []
-        for _ in range(self._max_iterations):
-            e, d, exact_end, inverse = _local_model(problem, s_bar, v_end)
-            ubg[4 : 4 + _PIECES] = e
-            curvature = float(np.dot(multipliers, inverse))
-            try:
-                solution = qp(
-                    p=np.concatenate([[problem.v_target, curvature, v_end], d.ravel(order="F")]),
-                    lbx=lbx,
-                    ubx=ubx,
-                    lbg=lbg.ravel(order="F"),
-                    ubg=ubg.ravel(order="F"),
-                )
-            except RuntimeError as error:  # CasADi reports a crashed backend this way
-                notes.append(f"QP {qp_solves + 1} raised: {str(error).splitlines()[-1][:120]}")
-                break
-            stats = qp.stats()
-            qp_solves += 1
-            ipm_iterations += int(stats.get("iter_count", 0))
-            flag = int(stats.get("return_status", -1))
-            jerk = np.asarray(solution["x"], dtype=np.float64).ravel()[3 : 6 * n : 6]
-            if flag not in (_HPIPM_SUCCESS, _HPIPM_MAX_ITER) or not np.all(np.isfinite(jerk)):
-                notes.append(f"QP {qp_solves} failed (HPIPM flag {flag})")
-                break
-            if flag == _HPIPM_MAX_ITER:
-                notes.append(f"QP {qp_solves} stopped at HPIPM's iteration limit")
-            end_rows = slice(_ROWS * (n - 1) + 4, _ROWS * (n - 1) + 4 + _PIECES)
-            lam = np.asarray(solution["lam_g"], dtype=np.float64).ravel()[end_rows]
-            multipliers = np.maximum(np.nan_to_num(lam, nan=0.0, posinf=0.0, neginf=0.0), 0.0)
-            target = _iterate(problem, np.clip(jerk, -problem.jerk_max, problem.jerk_max))
-            no_worse = best is None or target.merit <= best.merit + _MERIT_SLACK * (1 + abs(best.merit))
-            if no_worse and self._model_error(problem, e, d, target, exact_end) <= self._tolerance:
-                best, converged = target, flag == _HPIPM_SUCCESS
-                break
-            candidate = target if best is None else self._line_search(problem, best, target)
-            if candidate is best:
-                notes.append("the line search found no decrease")
-                break
-            best, s_bar = candidate, candidate.s
-            # linearise v_end next at the boundary point below an over-shooting v_N
-            v_end = min(float(candidate.v[-1]), end_speed_limit(problem, problem.s0 + float(candidate.s[-1])))
+        bounds = self._bounds(problem)
+        run = self._sqp(problem, qp, bounds, s_bar, v_end, self._max_iterations)
+        best, converged, notes = run.best, run.converged, run.notes
+        qp_solves, ipm_iterations = run.qp_solves, run.ipm_iterations
+        if best is not None and _max_violation(problem, best) > _RESTORE_VIOLATION:
+            # a violation although a full stop meets every constraint: a local minimum of the penalty
+            # function (a sharp V-shaped dip of v_lim can hold one); try again from the full stop
+            stop = braking_profile(problem)
+            s_stop, v_stop, a_stop = integrate_jerk(problem.dt, 0.0, problem.v0, problem.a0, stop)
+            if _max_violation(problem, _Iterate(stop, s_stop, v_stop, a_stop, 0.0)) <= 1e-9:
+                retry = self._sqp(problem, qp, bounds, s_stop, 0.0, self._max_iterations)
+                qp_solves += retry.qp_solves
+                ipm_iterations += retry.ipm_iterations
+                if retry.best is not None and retry.best.merit < best.merit:
+                    best, converged = retry.best, retry.converged
+                    notes = [*retry.notes, "restarted from a full stop after a violation it did not need"]
+                if _max_violation(problem, best) > _RESTORE_VIOLATION:
+                    converged = False
+                    notes.append("a violation remains although a full stop meets every constraint")
 
         if best is None:
             status = SolverStatus.FAILED
@@ -953,6 +964,68 @@ class SpeedSolver:
             max_violation=max(speed_violation, position_violation),
             qp_solves=qp_solves,
         )
+
+    def _sqp(
+        self,
+        problem: SpeedProblem,
+        qp: Any,
+        bounds: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
+        s_bar: FloatArray,
+        v_end: float,
+        budget: int,
+    ) -> _Run:
+        """Up to ``budget`` SQP iterations from the linearisation point ``(s̄, v̂_N)``."""
+        n = problem.steps
+        lbx, ubx, lbg, ubg = bounds
+        best: _Iterate | None = None
+        multipliers = np.zeros(_PIECES)  # of the end rows in the last QP
+        converged = False
+        qp_solves = ipm_iterations = 0
+        notes: list[str] = []
+        for _ in range(budget):
+            e, d, exact_end, inverse = _local_model(problem, s_bar, v_end)
+            ubg[4 : 4 + _PIECES] = e
+            curvature = float(np.dot(multipliers, inverse))
+            try:
+                solution = qp(
+                    p=np.concatenate([[problem.v_target, curvature, v_end], d.ravel(order="F")]),
+                    lbx=lbx,
+                    ubx=ubx,
+                    lbg=lbg.ravel(order="F"),
+                    ubg=ubg.ravel(order="F"),
+                )
+            except RuntimeError as error:  # CasADi reports a crashed backend this way
+                notes.append(f"QP {qp_solves + 1} raised: {str(error).splitlines()[-1][:120]}")
+                break
+            stats = qp.stats()
+            qp_solves += 1
+            ipm_iterations += int(stats.get("iter_count", 0))
+            flag = int(stats.get("return_status", -1))
+            jerk = np.asarray(solution["x"], dtype=np.float64).ravel()[3 : 6 * n : 6]
+            if flag not in _HPIPM_USABLE or not np.all(np.isfinite(jerk)):
+                notes.append(f"QP {qp_solves} failed (HPIPM flag {flag})")
+                break
+            target = _iterate(problem, np.clip(jerk, -problem.jerk_max, problem.jerk_max))
+            if flag != _HPIPM_SUCCESS:
+                if not _within_boxes(problem, target):
+                    notes.append(f"QP {qp_solves} failed (HPIPM flag {flag}, iterate outside the boxes)")
+                    break
+                notes.append(f"QP {qp_solves} stopped early (HPIPM flag {flag}); its iterate was used")
+            end_rows = slice(_ROWS * (n - 1) + 4, _ROWS * (n - 1) + 4 + _PIECES)
+            lam = np.asarray(solution["lam_g"], dtype=np.float64).ravel()[end_rows]
+            multipliers = np.maximum(np.nan_to_num(lam, nan=0.0, posinf=0.0, neginf=0.0), 0.0)
+            no_worse = best is None or target.merit <= best.merit + _MERIT_SLACK * (1 + abs(best.merit))
+            if no_worse and self._model_error(problem, e, d, target, exact_end) <= self._tolerance:
+                best, converged = target, flag == _HPIPM_SUCCESS
+                break
+            candidate = target if best is None else self._line_search(problem, best, target)
+            if candidate is best:
+                notes.append("the line search found no decrease")
+                break
+            best, s_bar = candidate, candidate.s
+            # linearise v_end next at the boundary point below an over-shooting v_N
+            v_end = min(float(candidate.v[-1]), end_speed_limit(problem, problem.s0 + float(candidate.s[-1])))
+        return _Run(best, converged, qp_solves, ipm_iterations, notes)
 
     @staticmethod
     def _bounds(problem: SpeedProblem) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
