@@ -343,7 +343,7 @@ def _braking(path: Path, problem: PlanningProblem, steps: int, dt: float) -> Spe
 @dataclass
 class _Solvers:
     lateral: LateralQPSolver = field(default_factory=lambda: LateralQPSolver(refine_steps=0))
-    speed: SpeedSolver = field(default_factory=SpeedSolver)
+    speed: SpeedSolver = field(default_factory=lambda: SpeedSolver(max_iterations=3, tolerance=1e-3))
 
 
 _SOLVERS: dict[int, _Solvers] = {}
