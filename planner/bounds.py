@@ -38,29 +38,22 @@ class LateralBounds:
 
 
 def pass_left(
-    boxes: FrenetBoxes,
-    s: FloatArray,
-    d: FloatArray,
-    valid: NDArray[np.bool_],
-    lower: FloatArray,
-    upper: FloatArray,
+    boxes: FrenetBoxes, s: FloatArray, d: FloatArray, lower: FloatArray, upper: FloatArray
 ) -> NDArray[np.bool_]:
     """Decide per obstacle whether a path ``d(s)`` passes on its left (True) or right (False).
 
-    The side on which the path's mean offset over the obstacle's ``s``-range lies; where the path has
-    no point there, the side with more room between the obstacle and the lane bounds.
+    The side of the obstacle's middle on which the path's mean offset over the obstacle's ``s``-range
+    lies; where the path has no point there, the side with more room to the lane bounds
+    ``lower, upper`` [m].
     """
     out = np.zeros(boxes.count, dtype=bool)
     for k in range(boxes.count):  # one decision per obstacle, not per point
-        near = valid & (s >= boxes.s_min[k]) & (s <= boxes.s_max[k])
-        centre = 0.5 * (boxes.d_min[k] + boxes.d_max[k])
+        near = (s >= boxes.s_min[k]) & (s <= boxes.s_max[k])
         if near.any():
-            out[k] = float(np.mean(d[near])) >= centre
+            out[k] = float(np.mean(d[near])) >= 0.5 * (boxes.d_min[k] + boxes.d_max[k])
         else:
-            span = (s >= boxes.s_min[k]) & (s <= boxes.s_max[k])
-            room_left = float(np.min(upper[span], initial=np.inf)) - boxes.d_max[k]
-            room_right = boxes.d_min[k] - float(np.max(lower[span], initial=-np.inf))
-            out[k] = room_left >= room_right
+            at = int(np.clip(np.searchsorted(s, boxes.s_min[k]), 0, s.shape[0] - 1))
+            out[k] = upper[at] - boxes.d_max[k] >= boxes.d_min[k] - lower[at]
     return out
 
 

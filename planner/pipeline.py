@@ -20,7 +20,14 @@ from scipy.ndimage import minimum_filter1d
 from shapely.geometry.base import BaseGeometry
 
 from planner.bounds import LateralBounds, lateral_bounds, pass_left
-from planner.candidates import CandidateSet, EgoFrenet, check_ego_on_road, ego_frenet, generate_candidates
+from planner.candidates import (
+    CandidateSet,
+    EgoFrenet,
+    check_ego_on_road,
+    ego_frenet,
+    generate_candidates,
+    lane_bounds,
+)
 from planner.collision import (
     FrenetBoxes,
     box_corners,
@@ -138,7 +145,7 @@ def moving_obstacles(problem: PlanningProblem) -> list[DynamicObstacle]:
 
 
 def choose_candidate(
-    ref: ReferenceLine, cands: CandidateSet, boxes: FrenetBoxes, problem: PlanningProblem
+    cands: CandidateSet, boxes: FrenetBoxes, problem: PlanningProblem
 ) -> tuple[int, NDArray[np.bool_]]:
     """Score every candidate (offset, smoothness, progress, clearance) and return the best
     collision-free one (the best overall if none is free) with the collision-free mask."""
@@ -346,15 +353,15 @@ class _Solvers:
     speed: SpeedSolver = field(default_factory=lambda: SpeedSolver(max_iterations=3, tolerance=1e-3))
 
 
-_SOLVERS: dict[int, _Solvers] = {}
+_THREAD = threading.local()
 
 
 def _solvers() -> _Solvers:
     """The solvers of this thread (their built problems are reused between plans)."""
-    key = threading.get_ident()
-    if key not in _SOLVERS:
-        _SOLVERS[key] = _Solvers()
-    return _SOLVERS[key]
+    if not hasattr(_THREAD, "solvers"):
+        _THREAD.solvers = _Solvers()
+    solvers: _Solvers = _THREAD.solvers
+    return solvers
 
 
 def plan(problem: PlanningProblem) -> PlanResult:
@@ -374,7 +381,7 @@ def plan(problem: PlanningProblem) -> PlanResult:
         cands = generate_candidates(ref, problem.lane, problem.ego, vehicle, options, start=start)
         shapes = static_shapes(problem)
         boxes = frenet_boxes(ref, shapes)
-        best, free = choose_candidate(ref, cands, boxes, problem)
+        best, free = choose_candidate(cands, boxes, problem)
         s_c, d_c, _ = cands.points(best)
     candidate_path = polyline_path(ref, s_c, d_c)
     stats = CandidateStats(cands.count, int(cands.repaired.sum()), int(free.sum()))
@@ -384,10 +391,10 @@ def plan(problem: PlanningProblem) -> PlanResult:
     with timer.stage("lateral"):
         knots = _knots(start, float(s_c[-1]))
         d_ref = np.interp(knots, s_c, d_c)
-        valid = np.ones(knots.shape[0], dtype=bool)
-        lane_lo = np.full(knots.shape, -np.inf)
-        lane_hi = np.full(knots.shape, np.inf)
-        left_of = pass_left(boxes, knots, d_ref, valid, lane_lo, lane_hi)
+        lane = lane_bounds(
+            ref, problem.lane, knots, half_width=0.5 * vehicle.width, margin=options.lateral_margin
+        )
+        left_of = pass_left(boxes, knots, d_ref, lane.lower, lane.upper)
         bounds = lateral_bounds(
             ref,
             problem.lane,
