@@ -116,15 +116,19 @@ def sample(
     sig = sigma0[k] + v[k] * tau + a[k] * tau**2 / 2 + jerk[k] * tau**3 / 6
     vel = np.maximum(v[k] + a[k] * tau + jerk[k] * tau**2 / 2, 0.0)
     acc = a[k] + jerk[k] * tau
-    sig = np.clip(np.maximum.accumulate(sig), 0.0, path.length)
+    sig = np.maximum(np.maximum.accumulate(sig), 0.0)
+    # A profile that overruns the path (it could not stop in time) carries on straight along the
+    # path's last heading, so that positions stay consistent with the speed and the checks see it.
+    over = np.maximum(sig - path.length, 0.0)
+    heading = np.interp(sig, path.sigma, np.unwrap(path.heading))
     return Trajectory(
         t=t,
-        x=np.interp(sig, path.sigma, path.x),
-        y=np.interp(sig, path.sigma, path.y),
-        heading=np.interp(sig, path.sigma, np.unwrap(path.heading)),
-        curvature=np.interp(sig, path.sigma, path.curvature),
+        x=np.interp(sig, path.sigma, path.x) + over * np.cos(heading),
+        y=np.interp(sig, path.sigma, path.y) + over * np.sin(heading),
+        heading=heading,
+        curvature=np.where(over > 0, 0.0, np.interp(sig, path.sigma, path.curvature)),
         v=vel,
         a=acc,
-        s=np.interp(sig, path.sigma, path.s),
+        s=np.interp(sig, path.sigma, path.s) + over,
         d=np.interp(sig, path.sigma, path.d),
     )
