@@ -26,6 +26,7 @@ walk steps inside TransF-κ.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -318,7 +319,7 @@ def _consistent_offsets(
     reach = 2.0 * np.maximum(np.abs(bounds.upper), np.abs(bounds.lower)) + ref.spacing
     near = ref.tree.query_ball_point(origin, reach)
     owner = np.repeat(np.arange(s_row.shape[0]), [len(n) for n in near])
-    j = np.fromiter((i for n in near for i in n), dtype=np.intp, count=owner.shape[0])
+    j = np.fromiter(itertools.chain.from_iterable(near), dtype=np.intp, count=owner.shape[0])
     w = ref.points[j] - origin[owner]
     across = np.einsum("ij,ij->i", w, normal[owner])
     sq = np.einsum("ij,ij->i", w, w)
