@@ -389,7 +389,7 @@ def plan(problem: PlanningProblem) -> PlanResult:
     dt_speed = options.horizon_time / steps
 
     with timer.stage("lateral"):
-        knots = _knots(start, float(s_c[-1]))
+        knots = _knots(start, max(float(s_c[-1]), start.s + 2.0 * KNOT_SPACING))
         d_ref = np.interp(knots, s_c, d_c)
         lane = lane_bounds(
             ref, problem.lane, knots, half_width=0.5 * vehicle.width, margin=options.lateral_margin

@@ -76,3 +76,71 @@ def test_demo_u_turn_plans_around_the_corner() -> None:
     assert result.status == "ok"
     assert result.diagnostics.candidates.generated == demo_problem().options.num_candidates
     assert set(result.diagnostics.timing_ms) >= {"reference", "candidates", "lateral", "speed", "total"}
+
+
+def _random_problem(rng: np.random.Generator) -> PlanningProblem:
+    """A random road (U-turn, arc, straight or clothoid, possibly noisy), ego, obstacles and limits."""
+    from planner.problem import CircleObstacle
+    from planner.roads import arc, clothoid, u_turn
+
+    kind = rng.integers(0, 4)
+    if kind == 0:
+        road = u_turn(rng.uniform(2, 20), rng.uniform(5, 40), step=rng.choice([0.5, 1, 3]))
+    elif kind == 1:
+        road = arc(rng.uniform(3, 200), rng.uniform(-3, 3), step=rng.choice([0.5, 2, 5]))
+    elif kind == 2:
+        road = straight(rng.uniform(5, 300), heading=rng.uniform(-3, 3), step=rng.choice([0.5, 5]))
+    else:
+        road = clothoid(rng.uniform(10, 100), rng.uniform(-0.02, 0.02), step=1.0)
+    road = road + rng.normal(0, rng.choice([0, 0.01, 0.2]), road.shape)
+    k = min(int(rng.integers(1, len(road) - 1)) if len(road) > 3 else 1, len(road) - 2)
+    heading = np.arctan2(*(road[k + 1] - road[k])[::-1]) + rng.normal(0, 0.3)
+    ego = Ego(
+        road[k][0] + rng.normal(0, 1),
+        road[k][1] + rng.normal(0, 1),
+        heading,
+        speed=rng.uniform(0, 30),
+        acceleration=rng.uniform(-3, 2),
+    )
+    obstacles: list[CircleObstacle | DynamicObstacle] = []
+    for j in range(int(rng.integers(0, 5))):
+        c = road[rng.integers(0, len(road))] + rng.normal(0, 2, 2)
+        if rng.random() < 0.5:
+            obstacles.append(CircleObstacle(f"c{j}", c, rng.uniform(0.2, 3)))
+        else:
+            t = np.arange(0, 8.1, 0.5)
+            v, h = rng.uniform(-5, 15), rng.uniform(-3, 3)
+            states = np.column_stack((t, c[0] + v * t * np.cos(h), c[1] + v * t * np.sin(h), t * 0 + h))
+            obstacles.append(DynamicObstacle(f"d{j}", 4.5, 1.8, states))
+    lane = Lane(rng.uniform(0, 8), rng.uniform(0, 8))
+    vehicle = Vehicle(max_curvature=rng.uniform(0.05, 0.5), max_lateral_acceleration=rng.uniform(1, 6))
+    options = Options(
+        horizon_time=rng.uniform(1, 20),
+        dt=rng.choice([0.05, 0.1, 0.2, 0.5]),
+        target_speed=rng.uniform(0, 30),
+        num_candidates=int(rng.integers(1, 64)),
+        generator=rng.choice(["naive", "transf_kappa"]),
+    )
+    return PlanningProblem(road, lane, ego, tuple(obstacles), vehicle, options)
+
+
+def test_random_problems_end_in_a_status_or_a_domain_error() -> None:
+    """Whatever the input, planning answers with a status and a finite trajectory, or raises one of
+    the planner's own errors (a 4xx): never anything else (a 5xx). Case 17 once had a zero-length path."""
+    from planner.errors import PlannerError
+
+    rng = np.random.default_rng(1)
+    answered = 0
+    for _ in range(30):
+        problem = _random_problem(rng)
+        try:
+            result = plan(problem)
+        except PlannerError:
+            continue
+        answered += 1
+        assert result.status in ("ok", "stopped", "fallback")
+        assert np.isfinite(result.trajectory.x).all() and np.isfinite(result.trajectory.v).all()
+        if result.status in ("ok", "stopped"):
+            ref = build_reference(problem.reference_line)
+            assert trajectory_violations(ref, problem, result.trajectory, static_shapes(problem)) == []
+    assert answered >= 10
