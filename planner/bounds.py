@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import maximum_filter1d
 
 from planner.candidates import lane_bounds
 from planner.collision import FrenetBoxes
@@ -57,6 +58,30 @@ def pass_left(
     return out
 
 
+def curve_bulge(ref: ReferenceLine, s: FloatArray, vehicle: Vehicle) -> tuple[FloatArray, FloatArray]:
+    """How far [m] the footprint's corners reach beyond its sides on the outside of a curve, to the
+    left and to the right, at knots ``s`` [m].
+
+    A chord of the vehicle's length ``L`` on a path of curvature ``κ_p`` leaves the path by the sagitta
+    ``κ_p (L/2)² / 2``: on the outer side of a curve the front and rear corners stick out that much
+    beyond ``W/2``. The path's curvature is ``κ/(1 − κd) ≤ min(|κ|, κ_max)`` on the outer side of the
+    reference and under the κ·d bound, so the bulge uses that, with the tightest ``κ`` within ``L/2``
+    either side of the knot (the footprint covers that stretch).
+    """
+    half_l = 0.5 * vehicle.length
+    kappa = ref.kappa_at(s)
+    step = float(s[1] - s[0]) if s.shape[0] > 1 else half_l
+    size = 2 * int(np.ceil(half_l / max(step, 1e-6))) + 1
+    left_turn = maximum_filter1d(np.clip(kappa, 0.0, None), size=size, mode="nearest")
+    right_turn = maximum_filter1d(np.clip(-kappa, 0.0, None), size=size, mode="nearest")
+    sag = 0.5 * half_l**2
+    # a left turn pushes the corners out to the right, a right turn to the left
+    return (
+        sag * np.minimum(right_turn, vehicle.max_curvature),
+        sag * np.minimum(left_turn, vehicle.max_curvature),
+    )
+
+
 def lateral_bounds(
     ref: ReferenceLine,
     lane: Lane,
@@ -75,12 +100,18 @@ def lateral_bounds(
     """
     theta = np.zeros_like(s) if heading_error is None else np.asarray(heading_error)
     half_extent = 0.5 * vehicle.length * np.abs(np.sin(theta)) + 0.5 * vehicle.width * np.cos(theta)
+    bulge_left, bulge_right = curve_bulge(ref, s, vehicle)
     straight = lane_bounds(ref, lane, s, half_width=0.5 * vehicle.width, margin=margin)
     turned = lane_bounds(ref, lane, s, half_width=0.0, margin=margin)
-    lower, upper = turned.lower + half_extent, turned.upper - half_extent
-    # Where the turned footprint does not fit, fall back to the footprint aligned with the lane.
-    tight = lower > upper
-    lower, upper = np.where(tight, straight.lower, lower), np.where(tight, straight.upper, upper)
+    # The footprint turned by the heading error with its corners bulging out of curves; where that
+    # does not fit, without the bulge; where that does not fit either, aligned with the lane (a lane
+    # narrower than the vehicle is not a blocked road: its bounds meet in the middle).
+    lower, upper = straight.lower, straight.upper
+    for extra_right, extra_left in ((0.0, 0.0), (bulge_right, bulge_left)):
+        lo = turned.lower + half_extent + extra_right
+        up = turned.upper - half_extent - extra_left
+        fits = lo <= up
+        lower, upper = np.where(fits, lo, lower), np.where(fits, up, upper)
     half_l, half_w = 0.5 * vehicle.length, 0.5 * vehicle.width
     if boxes.count:
         overlaps = (s[:, None] + half_l + margin >= boxes.s_min) & (

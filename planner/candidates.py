@@ -238,7 +238,10 @@ def generate_candidates(
     rng = np.random.default_rng(options.seed)
     span = s_end - start.s
     alpha = -1.0 + 2.0 * (np.arange(n) + rng.uniform(size=n)) / n
-    transition = span * rng.uniform(0.3, 1.0, size=n)
+    # Transition lengths log-uniform from a quick swerve (about 1.5 s of driving, at least two vehicle
+    # lengths) to the whole path: an obstacle close ahead needs the short ones, comfort the long ones.
+    shortest = float(np.clip(1.5 * ego.speed, 2.0 * vehicle.length, span))
+    transition = shortest * (span / shortest) ** rng.uniform(size=n)
 
     # Everything that depends on s alone is computed once per column, not per candidate.
     s_row = np.linspace(start.s, s_end, p)
