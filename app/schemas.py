@@ -56,10 +56,18 @@ MAX_QUERY_POINTS = 10_000
 MAX_OBSTACLES, MAX_POLYGON_POINTS, MAX_PREDICTION_STATES = 1000, 1000, 2000
 #: smallest polygon area [m²]; below it the polygon is degenerate
 MIN_POLYGON_AREA = 1e-6
+#: smallest obstacle dimension (circle radius, box length and width) [m]
+MIN_OBSTACLE_SIZE = 1e-3
 #: most points over all candidates (num_candidates × num_points) of one request
 MAX_TOTAL_CANDIDATE_POINTS = 200_000
 #: largest lane width, obstacle size [m], |heading| [rad], |time| [s], speed [m/s]
 MAX_WIDTH, MAX_SIZE, MAX_ANGLE, MAX_TIME, MAX_SPEED = 1000.0, 1000.0, 1000.0, 1e6, 200.0
+#: smallest vehicle acceleration limits [m/s²] and curvature limit [1/m]: a vehicle that cannot brake
+#: harder than 1 cm/s² or turn tighter than a 10 km radius is no vehicle, and below these the
+#: planner's braking distances and curvature bounds overflow
+MIN_VEHICLE_ACCELERATION, MIN_VEHICLE_CURVATURE = 0.01, 1e-4
+#: limits of a plan's compute budget [ms]
+MIN_TIME_BUDGET_MS, MAX_TIME_BUDGET_MS = 1.0, 60_000.0
 
 
 def _number(
@@ -73,7 +81,7 @@ Coordinate = Annotated[float, _number(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
 Angle = Annotated[float, _number(ge=-MAX_ANGLE, le=MAX_ANGLE)]
 Time = Annotated[float, _number(ge=-MAX_TIME, le=MAX_TIME)]
 Width = Annotated[float, _number(ge=0.0, le=MAX_WIDTH)]
-Size = Annotated[float, _number(gt=0.0, le=MAX_SIZE)]
+Size = Annotated[float, _number(ge=MIN_OBSTACLE_SIZE, le=MAX_SIZE)]
 Speed = Annotated[float, _number(ge=0.0, le=MAX_SPEED)]
 Point = Annotated[tuple[Coordinate, Coordinate], Field(description="[x, y] [m]")]
 FrenetPoint = Annotated[tuple[Coordinate, Coordinate], Field(description="[s, d] [m]")]
@@ -284,7 +292,8 @@ _OPTIONS = pp.Options()
 
 
 class Vehicle(_Model):
-    """Vehicle footprint and limits (all positive)."""
+    """Vehicle footprint and limits (all positive; the acceleration and curvature limits at least
+    0.01 m/s² and 1e-4 1/m)."""
 
     length: float = _number(gt=0.0, le=100.0, default=_VEHICLE.length, description="Length [m].")
     width: float = _number(gt=0.0, le=20.0, default=_VEHICLE.width, description="Width [m].")
@@ -292,16 +301,22 @@ class Vehicle(_Model):
         gt=0.0, le=MAX_SPEED, default=_VEHICLE.max_speed, description="Speed limit [m/s]."
     )
     max_acceleration: float = _number(
-        gt=0.0, le=100.0, default=_VEHICLE.max_acceleration, description="[m/s²]"
+        ge=MIN_VEHICLE_ACCELERATION, le=100.0, default=_VEHICLE.max_acceleration, description="[m/s²]"
     )
     max_deceleration: float = _number(
-        gt=0.0, le=100.0, default=_VEHICLE.max_deceleration, description="[m/s²], positive."
+        ge=MIN_VEHICLE_ACCELERATION,
+        le=100.0,
+        default=_VEHICLE.max_deceleration,
+        description="[m/s²], positive.",
     )
     max_lateral_acceleration: float = _number(
-        gt=0.0, le=100.0, default=_VEHICLE.max_lateral_acceleration, description="[m/s²]"
+        ge=MIN_VEHICLE_ACCELERATION,
+        le=100.0,
+        default=_VEHICLE.max_lateral_acceleration,
+        description="[m/s²]",
     )
     max_curvature: float = _number(
-        gt=0.0, le=100.0, default=_VEHICLE.max_curvature, description="[1/m]"
+        ge=MIN_VEHICLE_CURVATURE, le=100.0, default=_VEHICLE.max_curvature, description="[1/m]"
     )
 
 
@@ -342,6 +357,13 @@ class Options(_Model):
     )
     return_candidates: bool = Field(
         _OPTIONS.return_candidates, strict=True, description="Include candidates in a plan."
+    )
+    time_budget_ms: float | None = _number(
+        ge=MIN_TIME_BUDGET_MS,
+        le=MAX_TIME_BUDGET_MS,
+        default=None,
+        description="Compute budget of a plan [ms]: a stage that ends past it makes the answer a braking "
+        "`fallback` saying so. null: the server's default (setting KAPPA_TIME_BUDGET_MS).",
     )
 
     @model_validator(mode="after")
@@ -421,8 +443,12 @@ def _obstacle_to_problem(
     return pp.DynamicObstacle(id=o.id, length=o.length, width=o.width, prediction=states)
 
 
-def to_problem(request: PlanningRequest) -> pp.PlanningProblem:
-    """The planner's :class:`~planner.problem.PlanningProblem` of a validated request."""
+def to_problem(request: PlanningRequest, *, time_budget_ms: float | None = None) -> pp.PlanningProblem:
+    """The planner's :class:`~planner.problem.PlanningProblem` of a validated request;
+    ``time_budget_ms`` [ms] stands in for a budget the request leaves out."""
+    options = request.options.model_dump()
+    if options["time_budget_ms"] is None:
+        options["time_budget_ms"] = time_budget_ms
     return pp.PlanningProblem(
         reference_line=np.asarray(request.reference_line, dtype=float),
         lane=pp.Lane(
@@ -432,7 +458,7 @@ def to_problem(request: PlanningRequest) -> pp.PlanningProblem:
         ego=pp.Ego(**request.ego.model_dump()),
         obstacles=tuple(_obstacle_to_problem(o) for o in request.obstacles),
         vehicle=pp.Vehicle(**request.vehicle.model_dump()),
-        options=pp.Options(**request.options.model_dump()),
+        options=pp.Options(**options),
     )
 
 

@@ -59,8 +59,8 @@ OBSTACLE_MARGIN = 0.3
 STOP_GAP = 1.0
 #: bounds handed to the QP are tightened by this, covering its tolerance [m]
 QP_SLACK = 0.01
-#: wall-clock budget of one lateral QP solve [s]
-QP_TIME_LIMIT = 0.04
+#: ADMM iterations of one lateral QP solve (a count, not a time: the same request gets the same answer)
+QP_MAX_ITER = 4000
 #: jerk allowed when braking for a blocked road or in the fallback [m/s³]
 EMERGENCY_JERK = 30.0
 #: time headway kept to a moving obstacle ahead: the vehicle may not be where it was this long ago [s]
@@ -69,6 +69,8 @@ HEADWAY = 1.0
 LATERAL_JERK = 0.5
 #: jerk bound of the speed profile [m/s³]
 SPEED_JERK = 8.0
+#: a speed profile needing more slack than this [m/s or m] is re-planned with the emergency jerk
+SPEED_SLACK = 0.05
 #: share of the lateral-acceleration limit the speed profile plans with (its linearisation's tolerance)
 LIMIT_MARGIN = 0.9
 #: the speed limit at a point also holds this far either side of it [m]
@@ -110,8 +112,23 @@ class PlanResult:
 
 
 class _Timer:
-    def __init__(self) -> None:
+    def __init__(self, budget_ms: float | None = None) -> None:
         self.ms: dict[str, float] = {}
+        self._t0 = time.perf_counter()
+        self._budget_ms = budget_ms
+
+    def remaining_s(self) -> float | None:
+        """Budget left [s] (at least 1 ms), or None without a budget."""
+        if self._budget_ms is None:
+            return None
+        return max(1e-3 * self._budget_ms - (time.perf_counter() - self._t0), 1e-3)
+
+    def overrun(self, stage: str) -> str | None:
+        """Why the plan must stop after ``stage``, if the budget is spent; else None."""
+        elapsed = 1e3 * (time.perf_counter() - self._t0)
+        if self._budget_ms is None or elapsed <= self._budget_ms:
+            return None
+        return f"time budget of {self._budget_ms:g} ms spent after the {stage} stage ({elapsed:.0f} ms)"
 
     @contextmanager
     def stage(self, name: str) -> Iterator[None]:
@@ -122,8 +139,8 @@ class _Timer:
             self.ms[name] = self.ms.get(name, 0.0) + 1e3 * (time.perf_counter() - t0)
 
 
-#: lateral QP outcomes whose path is used (an unfinished iterate is clipped to the bounds; the
-#: trajectory checks decide whether it is good enough)
+#: lateral QP outcomes whose path is used (an unfinished iterate comes integrated from the initial
+#: state, so it is a consistent path; the trajectory checks decide whether it is good enough)
 _USABLE = {
     SolverStatus.SOLVED,
     SolverStatus.SOLVED_INACCURATE,
@@ -195,6 +212,7 @@ def _lateral_qp(
     start: EgoFrenet,
     ref: ReferenceLine,
     allowance: FloatArray,
+    time_limit_s: float | None = None,
 ) -> LateralQPResult:
     """Piecewise-jerk QP on ``d(s)``; ``d″`` bounds linearised at ``d_ref`` keep ``|κ_path| ≤ allowance``.
 
@@ -221,7 +239,7 @@ def _lateral_qp(
         ddd_lower=ddd_lower,
         ddd_upper=ddd_upper,
     )
-    return solver.solve(problem, time_limit_s=QP_TIME_LIMIT)
+    return solver.solve(problem, max_iter=QP_MAX_ITER, time_limit_s=time_limit_s)
 
 
 def _speed_limit(path: Path, problem: PlanningProblem) -> FloatArray:
@@ -366,7 +384,7 @@ def _solvers() -> _Solvers:
 
 def plan(problem: PlanningProblem) -> PlanResult:
     """Plan a trajectory for ``problem``; never raises for a planning failure (only for invalid input)."""
-    timer = _Timer()
+    timer = _Timer(problem.options.time_budget_ms)
     solvers = _solvers()
     options, vehicle = problem.options, problem.vehicle
     with timer.stage("reference"):
@@ -387,6 +405,31 @@ def plan(problem: PlanningProblem) -> PlanResult:
     stats = CandidateStats(cands.count, int(cands.repaired.sum()), int(free.sum()))
     steps = int(min(SPEED_STEPS, max(1, round(options.horizon_time / options.dt))))
     dt_speed = options.horizon_time / steps
+
+    def fallback(reason: str, path: Path, lateral: SolveInfo, speed: SolveInfo) -> PlanResult:
+        # Brake along the first path whose braking trajectory passes every check: the optimised one,
+        # the longer uncut candidate, or straight on at the ego's offset (no steering while it stops).
+        knots_ahead = _knots(start, max(float(s_c[-1]), start.s + 2.0 * KNOT_SPACING))
+        hold = np.full(knots_ahead.shape, start.d)
+        paths = (path, candidate_path, frenet_path(ref, knots_ahead, hold, 0.0 * hold, 0.0 * hold))
+        tried = []
+        for option in paths:
+            prof = _braking(option, problem, steps, dt_speed)
+            traj = sample(option, prof.t, prof.s - prof.s[0], prof.v, prof.a, prof.jerk, options.dt)
+            bad = trajectory_violations(ref, problem, traj, shapes)
+            tried.append((traj, bad))
+            if not bad:
+                break
+        traj, bad = min(tried, key=lambda tb: len(tb[1]))
+        diag = PlanDiagnostics(stats, lateral, speed, _total(timer), ref.size, knot_count, best)
+        message = reason if not bad else f"{reason}; the braking trajectory still breaks: {bad[0]}"
+        return PlanResult(
+            "fallback", message, traj, cands if options.return_candidates else None, diag, tuple(bad)
+        )
+
+    knot_count = 0
+    if reason := timer.overrun("candidates"):
+        return fallback(reason, candidate_path, _NOT_RUN, _NOT_RUN)
 
     with timer.stage("lateral"):
         knots = _knots(start, max(float(s_c[-1]), start.s + 2.0 * KNOT_SPACING))
@@ -416,25 +459,16 @@ def plan(problem: PlanningProblem) -> PlanResult:
             )
             d_ref = d_ref[:keep]
         allowance = curvature_allowance(bounds.s, start, problem)
-        qp = _lateral_qp(solvers.lateral, bounds, d_ref, start, ref, allowance)
+        qp = _lateral_qp(solvers.lateral, bounds, d_ref, start, ref, allowance, timer.remaining_s())
         if qp.info.status not in _USABLE:  # too fast for the road: keep at least the vehicle's limit
-            allowance = np.full(bounds.s.shape, 0.9 * vehicle.max_curvature)
-            qp = _lateral_qp(solvers.lateral, bounds, d_ref, start, ref, allowance)
-
-    def fallback(reason: str, path: Path, lateral: SolveInfo, speed: SolveInfo) -> PlanResult:
-        if path.length < float(candidate_path.length):  # brake on the longer, uncut candidate path
-            path = candidate_path
-        prof = _braking(path, problem, steps, dt_speed)
-        traj = sample(path, prof.t, prof.s - prof.s[0], prof.v, prof.a, prof.jerk, options.dt)
-        diag = PlanDiagnostics(stats, lateral, speed, _total(timer), ref.size, int(bounds.s.shape[0]), best)
-        bad = trajectory_violations(ref, problem, traj, shapes)
-        message = reason if not bad else f"{reason}; the braking trajectory still breaks: {bad[0]}"
-        return PlanResult(
-            "fallback", message, traj, cands if options.return_candidates else None, diag, tuple(bad)
-        )
+            allowance = np.full(bounds.s.shape, 0.99 * vehicle.max_curvature)
+            qp = _lateral_qp(solvers.lateral, bounds, d_ref, start, ref, allowance, timer.remaining_s())
+        knot_count = int(bounds.s.shape[0])
 
     if qp.info.status not in _USABLE:
         return fallback(f"lateral QP failed: {qp.info.status}", candidate_path, qp.info, _NOT_RUN)
+    if reason := timer.overrun("lateral"):
+        return fallback(reason, frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd), qp.info, _NOT_RUN)
 
     with timer.stage("speed"):
         path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
@@ -452,8 +486,14 @@ def plan(problem: PlanningProblem) -> PlanResult:
             s_upper = np.maximum(s_upper - STOP_GAP, 0.0)
         jerk = EMERGENCY_JERK if blocked is not None else SPEED_JERK
         speed = _speed(solvers.speed, path, problem, s_stop, s_upper, steps, dt_speed, jerk)
+        if speed.max_violation > SPEED_SLACK and jerk < EMERGENCY_JERK:
+            # The comfortable jerk cannot slow down in time (a curve or an obstacle close ahead):
+            # safety before comfort, brake as hard as the emergency jerk allows.
+            speed = _speed(solvers.speed, path, problem, s_stop, s_upper, steps, dt_speed, EMERGENCY_JERK)
     if not speed.info.ok:
         return fallback(f"speed profile failed: {speed.info.status}", path, qp.info, speed.info)
+    if reason := timer.overrun("speed"):
+        return fallback(reason, path, qp.info, speed.info)
 
     with timer.stage("trajectory"):
         traj = sample(path, speed.t, speed.s - speed.s[0], speed.v, speed.a, speed.jerk, options.dt)

@@ -99,6 +99,8 @@ class Options:
         return_candidates: include the candidates in the answer.
         lateral_margin: clearance kept from the lane edges and obstacles [m].
         min_path_length: shortest path the candidates cover [m].
+        time_budget_ms: wall-clock budget of one plan [ms]; a stage that ends past it makes the answer
+            a braking ``fallback`` saying so. ``None``: no budget.
     """
 
     horizon_time: float = 8.0
@@ -111,6 +113,7 @@ class Options:
     return_candidates: bool = False
     lateral_margin: float = 0.2
     min_path_length: float = 20.0
+    time_budget_ms: float | None = None
 
 
 @dataclass(frozen=True)

@@ -83,6 +83,7 @@ __all__ = [
     "LateralQPSolver",
     "LateralWeights",
     "build_qp_matrices",
+    "integrate_profile",
     "objective",
     "solve_lateral_qp",
 ]
@@ -406,6 +407,19 @@ def objective(problem: LateralQPProblem, d: FloatArray, dd: FloatArray, ddd: Flo
     if problem.end_d is not None:
         value += w.end_target * (d[-1] - problem.end_d) ** 2
     return float(value)
+
+
+def integrate_profile(problem: LateralQPProblem, ddd: FloatArray) -> FloatArray:
+    """``x = [d, d′, d″]`` integrated exactly from the initial state with d″ [1/m] per knot (the
+    equality rows of the QP hold; the box bounds need not). ``ddd[0]`` is replaced by ``ddd0`` and each
+    jerk ``(d″_{i+1} − d″_i)/Δs`` is clipped to ``±jerk_max``."""
+    ds = problem.ds
+    step = np.clip(np.diff(np.asarray(ddd, dtype=float)), -ds * problem.jerk_max, ds * problem.jerk_max)
+    curv = problem.ddd0 + np.concatenate(([0.0], np.cumsum(step)))
+    slope = problem.dd0 + np.concatenate(([0.0], np.cumsum(0.5 * ds * (curv[:-1] + curv[1:]))))
+    rise = ds * slope[:-1] + ds**2 / 3.0 * curv[:-1] + ds**2 / 6.0 * curv[1:]
+    d = problem.d0 + np.concatenate(([0.0], np.cumsum(rise)))
+    return np.concatenate([d, slope, curv])
 
 
 def _fallback_path(problem: LateralQPProblem) -> FloatArray:
@@ -817,8 +831,11 @@ class LateralQPSolver:
                 status = SolverStatus.FAILED
                 message += ", diverged"
             if usable and status in (SolverStatus.MAX_ITERATIONS, SolverStatus.TIME_LIMIT):
-                x = np.clip(x, l[: 3 * n], u[: 3 * n])  # the box rows; knot 0 pinned
-                message += "; returned the last iterate clipped to the bounds (not a solution)"
+                x = integrate_profile(problem, np.clip(x[2 * n :], l[2 * n : 3 * n], u[2 * n : 3 * n]))
+                message += (
+                    "; returned the last iterate's d″ integrated from the initial state "
+                    "(consistent, not a solution: the d bounds may be broken)"
+                )
             else:
                 x = _fallback_path(problem)
                 message += "; returned the reference clipped to the bounds (not a solution)"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -144,3 +146,28 @@ def test_random_problems_end_in_a_status_or_a_domain_error() -> None:
             ref = build_reference(problem.reference_line)
             assert trajectory_violations(ref, problem, result.trajectory, static_shapes(problem)) == []
     assert answered >= 10
+
+
+@pytest.mark.parametrize("budget_ms", [1.0, 1e5])
+def test_time_budget_makes_an_overrun_a_braking_fallback(budget_ms: float) -> None:
+    base = demo_problem()
+    problem = replace(base, options=replace(base.options, time_budget_ms=budget_ms))
+    result = plan(problem)
+    if budget_ms > 1e4:  # never reached: the same answer as without a budget
+        assert result.status == plan(base).status == "ok"
+        return
+    assert result.status == "fallback"
+    assert "time budget of 1 ms spent" in result.message
+    traj = result.trajectory
+    assert traj.v[0] == pytest.approx(problem.ego.speed)
+    assert np.all(np.diff(traj.v) <= 1e-9) and traj.v[-1] == pytest.approx(0.0, abs=1e-9)
+    ref = build_reference(problem.reference_line)
+    assert trajectory_violations(ref, problem, traj, static_shapes(problem)) == []
+
+
+def test_same_request_same_answer() -> None:
+    """No wall-clock limit inside a stage decides the answer: twice the same request, the same plan."""
+    first, second = plan(demo_problem()), plan(demo_problem())
+    assert first.status == second.status
+    np.testing.assert_allclose(first.trajectory.x, second.trajectory.x, atol=1e-6)
+    np.testing.assert_allclose(first.trajectory.v, second.trajectory.v, atol=1e-6)
