@@ -64,7 +64,7 @@ class ErrorInfo(BaseModel):
 
     code: str = Field(description="Stable machine-readable code, e.g. `invalid_request`.")
     message: str = Field(description="Human-readable summary.")
-    details: list[ErrorDetail] = Field(default_factory=list)
+    details: list[ErrorDetail] = Field(description="The problems, field by field; may be empty.")
 
 
 class ErrorResponse(BaseModel):

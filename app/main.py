@@ -1,19 +1,24 @@
 """The application factory: ``uvicorn app.main:app`` serves :data:`app`.
 
 Routes live in :mod:`app.routes` (one module per resource), error answers in :mod:`app.errors`,
-request and response models in :mod:`app.schemas`, settings in :mod:`app.settings`.
+request and response models in :mod:`app.schemas`, settings in :mod:`app.settings`, where plans run
+in :mod:`app.executor`, logs and metrics in :mod:`app.logs` and :mod:`app.metrics`.
 """
 
 from __future__ import annotations
 
-import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
 
 from fastapi import FastAPI
 
 from app import __version__
 from app.errors import install_error_handlers
-from app.middleware import BodyLimitMiddleware, JSONBodyMiddleware
+from app.executor import PlanExecutor
+from app.logs import configure_logging
+from app.middleware import BodyLimitMiddleware, JSONBodyMiddleware, RequestContextMiddleware
 from app.routes import routers
+from app.routes.plan import warm_up
 from app.settings import Settings
 
 DESCRIPTION = """\
@@ -30,21 +35,42 @@ works as is. Every error answer has the shape
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
-    """Build the application with ``settings`` (default: from the environment)."""
+    """Build the application with ``settings`` (default: from the environment).
+
+    Its lifespan starts the plan processes (each plans the demo once before it takes a request) and
+    stops them; without the lifespan, plans run in a thread (:mod:`app.executor`).
+    """
     settings = settings or Settings()
-    logging.getLogger("app").setLevel(settings.log_level.upper())
+    configure_logging(settings.log_level)
+    executor = PlanExecutor(settings.plan_pool_size(), settings.max_pending_plans, setup=warm_up)
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        await executor.start()
+        try:
+            yield
+        finally:
+            executor.shutdown()
+
     app = FastAPI(
         title="kappa-planner",
         version=__version__,
         summary="Trajectory planning robust on hairpins and U-turns (TransF-κ Frenet frame).",
         description=DESCRIPTION,
         separate_input_output_schemas=False,
+        lifespan=lifespan,
     )
+    app.state.settings = settings
+    app.state.plan_executor = executor
+    # the last added is the outermost: ids, logs and metrics see every answer, 413s included
     app.add_middleware(JSONBodyMiddleware)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     install_error_handlers(app)
     for router in routers:
         app.include_router(router)
+    routes = [*app.routes, *(route for router in routers for route in router.routes)]
+    paths = {path for route in routes if isinstance(path := getattr(route, "path", None), str)}
+    app.add_middleware(RequestContextMiddleware, paths=paths)
     return app
 
 

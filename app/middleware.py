@@ -1,12 +1,112 @@
-"""ASGI middleware of the service: request bodies are JSON and bounded in size."""
+"""ASGI middleware of the service: every request has an id, a log line and metrics; request bodies
+are JSON and bounded in size."""
 
 from __future__ import annotations
 
+import logging
+import time
+import uuid
+from collections.abc import Collection
+
 from fastapi import HTTPException
-from starlette.datastructures import Headers
+from starlette.datastructures import Headers, MutableHeaders
+from starlette.requests import Request
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from app.errors import error_response
+from app import metrics
+from app.errors import error_response, unexpected_error_handler
+from app.logs import REQUEST_ID
+
+#: header that carries the request id, both ways
+REQUEST_ID_HEADER = "X-Request-ID"
+#: longest request id taken from a client
+MAX_REQUEST_ID = 128
+#: route label of a path no route matches
+UNMATCHED = "unmatched"
+#: method labels of the metrics; any other method is counted as ``other`` (bounded label values)
+METHODS = frozenset({"GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"})
+
+access_logger = logging.getLogger("app.access")
+
+
+def valid_request_id(value: str | None) -> str | None:
+    """``value`` if it can serve as a request id — 1 to 128 printable ASCII characters — else None."""
+    if value and len(value) <= MAX_REQUEST_ID and value.isascii() and value.isprintable():
+        return value
+    return None
+
+
+class RequestContextMiddleware:
+    """The outermost layer: a request id, one JSON log line and the HTTP metrics per request.
+
+    The id is the client's ``X-Request-ID`` when valid (:func:`valid_request_id`), else a new UUID4;
+    it is in :data:`app.logs.REQUEST_ID` (so in every log line) while the request is served and in the
+    ``X-Request-ID`` header of every answer, errors and 413 included. An exception no handler took is
+    answered here (by :func:`app.errors.unexpected_error_handler`, which logs it) so that its 500 has
+    the header as well. The route of the metrics and the log line is the path template of the route
+    that served the request (so the scope must not be copied further in: the router notes the route
+    in it). The log line (logger ``app.access``) carries method, path, route, status, duration_ms,
+    request_id and, for a plan, ``plan_status`` and the stages' ``timing_ms`` (which the
+    route leaves in ``request.state``).
+    """
+
+    def __init__(self, app: ASGIApp, paths: Collection[str]) -> None:
+        """``paths``: the app's route paths, the labels of requests that never reached a route (413)."""
+        self.app = app
+        self.paths = frozenset(paths)
+
+    def route_of(self, scope: Scope) -> str:
+        """The path template of the route that served ``scope`` (also on a 405 or a 413), else
+        ``unmatched``."""
+        path = getattr(scope.get("route"), "path", None)
+        if isinstance(path, str):
+            return path
+        return scope["path"] if scope["path"] in self.paths else UNMATCHED
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        start = time.perf_counter()
+        request_id = valid_request_id(Headers(scope=scope).get(REQUEST_ID_HEADER)) or str(uuid.uuid4())
+        state = scope.setdefault("state", {})  # request.state of the route (plan status and timings)
+        token = REQUEST_ID.set(request_id)
+        status = 500
+        started = False
+
+        async def send_with_id(message: Message) -> None:
+            nonlocal status, started
+            if message["type"] == "http.response.start":
+                started = True
+                status = message["status"]
+                MutableHeaders(scope=message)[REQUEST_ID_HEADER] = request_id
+            await send(message)
+
+        try:
+            try:
+                await self.app(scope, receive, send_with_id)
+            except Exception as exc:
+                if started:
+                    raise
+                response = await unexpected_error_handler(Request(scope), exc)
+                await response(scope, receive, send_with_id)
+        finally:
+            seconds = time.perf_counter() - start
+            route = self.route_of(scope)
+            method = scope["method"] if scope["method"] in METHODS else "other"
+            metrics.observe_request(route, method, status, seconds)
+            fields: dict[str, object] = {
+                "method": scope["method"],
+                "path": scope["path"],
+                "route": route,
+                "status": status,
+                "duration_ms": round(1e3 * seconds, 3),
+            }
+            if "plan_status" in state:
+                fields["plan_status"] = state["plan_status"]
+                fields["timing_ms"] = state.get("plan_timing_ms")
+            access_logger.log(logging.ERROR if status >= 500 else logging.INFO, "request", extra=fields)
+            REQUEST_ID.reset(token)
 
 
 class JSONBodyMiddleware:
@@ -25,7 +125,7 @@ class JSONBodyMiddleware:
             if "json" not in content_type:
                 headers = [(k, v) for k, v in scope["headers"] if k.lower() != b"content-type"]
                 headers.append((b"content-type", b"application/json"))
-                scope = {**scope, "headers": headers}
+                scope["headers"] = headers  # in place: the outer layers read the route from the scope
         await self.app(scope, receive, send)
 
 

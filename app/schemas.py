@@ -58,6 +58,9 @@ MAX_OBSTACLES, MAX_POLYGON_POINTS, MAX_PREDICTION_STATES = 1000, 1000, 2000
 MIN_POLYGON_AREA = 1e-6
 #: smallest obstacle dimension (circle radius, box length and width) [m]
 MIN_OBSTACLE_SIZE = 1e-3
+#: longest total outline of a request's obstacles (polygon perimeters, circle circumferences, box
+#: perimeters) [m]: the planner maps every outline densely into the Frenet frame
+MAX_OBSTACLE_OUTLINE = 20_000.0
 #: most points over all candidates (num_candidates × num_points) of one request
 MAX_TOTAL_CANDIDATE_POINTS = 200_000
 #: largest lane width, obstacle size [m], |heading| [rad], |time| [s], speed [m/s]
@@ -239,6 +242,16 @@ class DynamicObstacle(_Model):
         return states
 
 
+def _outline_length(o: PolygonObstacle | CircleObstacle | DynamicObstacle) -> float:
+    """Length of an obstacle's outline [m]: perimeter, circumference, or its box's perimeter."""
+    if isinstance(o, PolygonObstacle):
+        p = np.asarray(o.polygon, dtype=float)
+        return float(np.linalg.norm(p - np.roll(p, -1, axis=0), axis=1).sum())
+    if isinstance(o, CircleObstacle):
+        return 2.0 * np.pi * o.circle.radius
+    return 2.0 * (o.length + o.width)
+
+
 def _obstacle_kind(value: Any) -> str | None:
     """The union member of an obstacle: by its one shape key (JSON) or by its class (Python)."""
     if isinstance(value, dict):
@@ -385,7 +398,10 @@ class PlanningRequest(_Model):
     reference_line: ReferencePolyline
     lane: Lane
     obstacles: list[Obstacle] = Field(
-        default_factory=list, max_length=MAX_OBSTACLES, description="Obstacles, ids unique."
+        default_factory=list,
+        max_length=MAX_OBSTACLES,
+        description="Obstacles, ids unique, their outlines at most "
+        f"{MAX_OBSTACLE_OUTLINE:.0f} m long in all.",
     )
     ego: Ego
     vehicle: Vehicle = Field(default_factory=Vehicle)
@@ -403,6 +419,13 @@ class PlanningRequest(_Model):
                     (i, "id"), "duplicate_id", "another obstacle has this id", obstacle.id
                 )
             seen.add(obstacle.id)
+        total = sum(_outline_length(o) for o in obstacles)
+        if total > MAX_OBSTACLE_OUTLINE:
+            raise PydanticCustomError(
+                "obstacles_too_large",
+                f"the obstacles' outlines are {total:.0f} m long in all; "
+                f"at most {MAX_OBSTACLE_OUTLINE:.0f} m is accepted",
+            )
         return obstacles
 
     @model_validator(mode="after")

@@ -1,13 +1,27 @@
-"""Service settings from the environment (prefix ``KAPPA_``), e.g. ``KAPPA_PORT=9000``."""
+"""Service settings from the environment (prefix ``KAPPA_``), e.g. ``KAPPA_PORT=9000``.
+
+``python -m app`` reads every field (host, port, workers, log level go to uvicorn); every worker
+process's :func:`app.main.create_app` reads them again, from the same environment. The README's
+"Configuration" section lists them.
+"""
 
 from __future__ import annotations
 
+import os
 from typing import Literal
 
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 LogLevel = Literal["critical", "error", "warning", "info", "debug"]
+
+
+def available_cpus() -> int:
+    """CPUs this process may run on (its affinity mask where the OS has one), at least 1."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
 
 
 class Settings(BaseSettings):
@@ -17,13 +31,34 @@ class Settings(BaseSettings):
 
     host: str = Field("127.0.0.1", description="Interface to listen on.")
     port: int = Field(8000, ge=1, le=65535, description="TCP port.")
-    workers: int = Field(1, ge=1, le=256, description="Worker processes.")
+    workers: int = Field(1, ge=1, le=256, description="Worker processes of uvicorn (HTTP).")
     log_level: LogLevel = Field("info", description="Log level of the service and of uvicorn.")
     max_body_bytes: int = Field(
         16 * 1024 * 1024, ge=1024, description="Largest request body accepted [bytes]; else 413."
+    )
+    plan_processes: int | None = Field(
+        None,
+        ge=0,
+        le=256,
+        description="Processes per worker that run plans; unset: CPUs ÷ workers (at least 1); 0: one "
+        "thread of the worker itself (no process pool).",
+    )
+    max_pending_plans: int = Field(
+        256, ge=1, le=100_000, description="Plans queued or running per worker; one more is a 503."
     )
 
     @field_validator("log_level", mode="before")
     @classmethod
     def _lower(cls, value: object) -> object:
         return value.lower() if isinstance(value, str) else value
+
+    @field_validator("plan_processes", mode="before")
+    @classmethod
+    def _empty_is_unset(cls, value: object) -> object:
+        return None if isinstance(value, str) and not value.strip() else value
+
+    def plan_pool_size(self) -> int:
+        """Processes of the plan pool of one worker: :attr:`plan_processes`, or CPUs ÷ workers."""
+        if self.plan_processes is not None:
+            return self.plan_processes
+        return max(1, available_cpus() // self.workers)

@@ -2,7 +2,7 @@
 
 from fastapi import APIRouter
 
-from app.routes import candidates, coordinates, demo, health, plan
+from app.routes import candidates, coordinates, demo, health, metrics, plan
 
 routers: list[APIRouter] = [
     coordinates.router,
@@ -10,4 +10,5 @@ routers: list[APIRouter] = [
     plan.router,
     demo.router,
     health.router,
+    metrics.router,
 ]

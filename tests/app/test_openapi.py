@@ -51,6 +51,7 @@ def test_operations_are_tagged_and_named() -> None:
         ("/v1/candidates", "post"): "generate_candidates",
         ("/v1/plan", "post"): "plan_trajectory",
         ("/v1/demo", "get"): "get_demo_request",
+        ("/metrics", "get"): "metrics",
     }
     for op in ops.values():
         assert op["tags"] and op["summary"] and op["description"]
