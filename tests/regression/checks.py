@@ -1,0 +1,229 @@
+"""Property checks of a ``POST /v1/plan`` answer, from the request's and the answer's JSON alone.
+
+Nothing here looks inside the server: the request is read as any client would send it (through
+``app.schemas.to_problem`` to get the planner's view of it, defaults filled in) and the answer is taken
+from its JSON, so the same checks hold against an in-process app or any running server.
+
+What is checked is properties, not numbers:
+
+* every answer: the JSON shape (keys, types, finite numbers), a status among the expected ones and a
+  message; the trajectory starts at the ego at ``t = 0`` and is sampled every ``options.dt`` up to
+  ``options.horizon_time``; speed never negative;
+* ``ok`` and ``stopped``: :func:`planner.validation.trajectory_violations` (inside the lane, clear of
+  obstacles at every time, ``1 − κ·d > 0``, curvature and lateral-acceleration limits, acceleration
+  limits, steps consistent with ``v·dt``, ``s`` increasing while moving, no self-intersection), plus
+  circles checked exactly, the speed limit, the heading along the direction of motion and the reported
+  ``s, d`` agreeing with TransF-κ of the positions;
+* ``fallback``: a reason, a braking profile (speed never increasing, deceleration within the limit)
+  and steps consistent with ``v·dt``.
+
+Units: metres, seconds, radians.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import shapely
+from pydantic import ValidationError
+
+from app.schemas import PlanningRequest, PlanResponse, to_problem
+from planner.collision import box_corners
+from planner.frenet import to_frenet
+from planner.problem import CircleObstacle, PlanningProblem, PolygonObstacle
+from planner.reference import build_reference
+from planner.trajectory import Trajectory
+from planner.validation import trajectory_violations
+
+STATUSES = ("ok", "stopped", "fallback")
+TRAJECTORY_FIELDS = ("t", "x", "y", "heading", "curvature", "v", "a", "s", "d")
+TOP_LEVEL = {"status", "message", "trajectory", "diagnostics"}
+
+#: the first point may be this far from the ego [m]
+START_TOL = 0.05
+#: tolerance on the time grid [s]
+TIME_TOL = 1e-6
+#: a point moves when its speed exceeds this [m/s]
+MOVING = 0.05
+#: relative tolerance on the vehicle limits
+REL_TOL = 1e-3
+#: heading vs the direction of motion [rad], for steps longer than MIN_DIRECTION_STEP [m]
+HEADING_TOL, MIN_DIRECTION_STEP = math.radians(3.0), 0.01
+#: reported s, d vs TransF-κ of the positions [m]
+FRENET_TOL = 0.05
+#: distance between consecutive points vs the mean speed × dt, absolute [m] + relative
+STEP_ABS_TOL, STEP_REL_TOL = 0.05, 0.05
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def shape_problems(request: PlanningRequest, answer: Any) -> list[str]:
+    """What is wrong with the JSON shape of ``answer`` to ``request``; [] if nothing."""
+    if not isinstance(answer, dict):
+        return [f"the answer is a {type(answer).__name__}, not an object"]
+    out: list[str] = []
+    expected = TOP_LEVEL | ({"candidates"} if request.options.return_candidates else set())
+    if set(answer) != expected:
+        out.append(f"top-level keys {sorted(answer)}, expected {sorted(expected)}")
+    try:
+        PlanResponse.model_validate_json(json.dumps(answer), strict=True)
+    except ValidationError as exc:
+        out.append(f"does not match PlanResponse: {exc.errors(include_url=False)[:5]}")
+    points = answer.get("trajectory")
+    if not isinstance(points, list) or len(points) < 2:
+        return [*out, "trajectory is not a list of at least two points"]
+    for i, p in enumerate(points):
+        if not isinstance(p, dict) or set(p) != set(TRAJECTORY_FIELDS):
+            keys = sorted(p) if isinstance(p, dict) else type(p).__name__
+            out.append(f"trajectory[{i}] has keys {keys}, expected {sorted(TRAJECTORY_FIELDS)}")
+            break
+        bad = [f for f in TRAJECTORY_FIELDS if not _number(p[f])]
+        if bad:
+            out.append(f"trajectory[{i}] has non-numbers or non-finite numbers in {bad}")
+            break
+    if not isinstance(answer.get("message"), str) or not answer["message"].strip():
+        out.append("no message")
+    return out
+
+
+def trajectory_of(answer: dict[str, Any]) -> Trajectory:
+    """The trajectory of a well-shaped answer as arrays."""
+    points = answer["trajectory"]
+    return Trajectory(**{f: np.array([p[f] for p in points], dtype=float) for f in TRAJECTORY_FIELDS})
+
+
+def _at(traj: Trajectory, i: int) -> str:
+    return f"i={i} t={traj.t[i]:.2f}s (x={traj.x[i]:.2f}, y={traj.y[i]:.2f}, v={traj.v[i]:.2f})"
+
+
+def common_problems(request: PlanningRequest, problem: PlanningProblem, traj: Trajectory) -> list[str]:
+    """Checks every answer must pass, whatever its status: start, time grid, speed sign, steps."""
+    out: list[str] = []
+    ego, opts = problem.ego, request.options
+    gap = float(np.hypot(traj.x[0] - ego.x, traj.y[0] - ego.y))
+    if gap > START_TOL:
+        out.append(f"starts {gap:.3f} m from the ego")
+    if abs(traj.t[0]) > TIME_TOL:
+        out.append(f"t[0] = {traj.t[0]} s, not 0")
+    dt = np.diff(traj.t)
+    if np.any(np.abs(dt - opts.dt) > TIME_TOL):
+        i = int(np.argmax(np.abs(dt - opts.dt)))
+        out.append(f"time step {dt[i]:.6f} s at i={i}, not options.dt = {opts.dt} s")
+    if not opts.horizon_time - opts.dt - TIME_TOL < traj.t[-1] <= opts.horizon_time + TIME_TOL:
+        out.append(f"ends at t = {traj.t[-1]:.3f} s, not within options.dt of {opts.horizon_time} s")
+    if np.any(traj.v < 0.0):
+        out.append(f"negative speed at {_at(traj, int(np.argmin(traj.v)))}")
+    step = np.hypot(np.diff(traj.x), np.diff(traj.y))
+    expected = 0.5 * (traj.v[:-1] + traj.v[1:]) * dt
+    err = np.abs(step - expected) - (STEP_ABS_TOL + STEP_REL_TOL * expected)
+    if np.any(err > 0):
+        i = int(np.argmax(err))
+        out.append(
+            f"step {i}→{i + 1} moves {step[i]:.3f} m but the mean speed × dt is {expected[i]:.3f} m "
+            f"at {_at(traj, i)}"
+        )
+    return out
+
+
+def full_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
+    """Every check of an ``ok`` or ``stopped`` trajectory."""
+    ref = build_reference(problem.reference_line)
+    polygons = [
+        (ob.id, shapely.make_valid(shapely.Polygon(np.asarray(ob.polygon, dtype=float))))
+        for ob in problem.obstacles
+        if isinstance(ob, PolygonObstacle)
+    ]
+    out = list(trajectory_violations(ref, problem, traj, polygons))  # dynamic obstacles: at each time
+    veh, ego = problem.vehicle, problem.ego
+
+    prints = shapely.polygons(box_corners(traj.x, traj.y, traj.heading, veh.length, veh.width))
+    for ob in problem.obstacles:
+        if isinstance(ob, CircleObstacle):
+            dist = shapely.distance(prints, shapely.Point(np.asarray(ob.center, dtype=float)))
+            if np.any(dist <= ob.radius):
+                i = int(np.argmin(dist))
+                depth = ob.radius - dist[i]
+                out.append(f"footprint hits obstacle {ob.id} by {depth:.3f} m at {_at(traj, i)}")
+
+    vmax = max(veh.max_speed, ego.speed) * (1 + REL_TOL)
+    if np.any(traj.v > vmax):
+        out.append(f"speed {traj.v.max():.2f} m/s above max_speed {veh.max_speed} m/s")
+
+    dx, dy = np.diff(traj.x), np.diff(traj.y)
+    motion = np.arctan2(dy, dx)
+    dh = np.angle(np.exp(1j * np.diff(traj.heading)))
+    mid = traj.heading[:-1] + 0.5 * dh
+    off = np.where(np.hypot(dx, dy) > MIN_DIRECTION_STEP, np.abs(np.angle(np.exp(1j * (mid - motion)))), 0.0)
+    if np.any(off > HEADING_TOL):
+        i = int(np.argmax(off))
+        out.append(f"heading {math.degrees(off[i]):.1f}° off the direction of motion at {_at(traj, i)}")
+
+    fr = to_frenet(ref, np.column_stack((traj.x, traj.y)))
+    for name, mine, theirs in (("s", fr.s, traj.s), ("d", fr.d, traj.d)):
+        diff = np.abs(mine - theirs)
+        if np.any(diff > FRENET_TOL):
+            i = int(np.argmax(diff))
+            out.append(
+                f"reported {name} = {theirs[i]:.3f} m but the position's is {mine[i]:.3f} m at {_at(traj, i)}"
+            )
+    return out
+
+
+def fallback_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
+    """A fallback brakes: speed never increases, deceleration within the limit."""
+    out: list[str] = []
+    veh, ego = problem.vehicle, problem.ego
+    if np.any(np.diff(traj.v) > 1e-6):
+        out.append(f"the fallback speeds up at {_at(traj, int(np.argmax(np.diff(traj.v))))}")
+    if np.any(traj.a < -veh.max_deceleration - 1e-3):
+        out.append(f"the fallback brakes harder than max_deceleration: {traj.a.min():.2f} m/s²")
+    if ego.speed > 0.0 and not traj.v[-1] < ego.speed:
+        out.append("the fallback does not slow down")
+    return out
+
+
+def plan_problems(request_json: dict[str, Any], answer: Any, statuses: Sequence[str]) -> list[str]:
+    """Every broken check of ``answer`` (the JSON of ``POST /v1/plan``) to ``request_json``; [] if none.
+
+    ``statuses`` are the acceptable ones for this request.
+    """
+    request = PlanningRequest.model_validate(request_json)
+    out = shape_problems(request, answer)
+    if out:
+        return out
+    status = answer["status"]
+    if status not in statuses:
+        out.append(f"status {status!r} ({answer['message']}), expected one of {list(statuses)}")
+    problem = to_problem(request)
+    traj = trajectory_of(answer)
+    out += common_problems(request, problem, traj)
+    if status in ("ok", "stopped"):
+        out += full_problems(problem, traj)
+    else:
+        out += fallback_problems(problem, traj)
+    return out
+
+
+def error_problems(answer: Any) -> list[str]:
+    """What is wrong with an error answer; its shape is
+    ``{"error": {"code", "message", "details": [{"field", "message"}]}}``."""
+    if not isinstance(answer, dict) or set(answer) != {"error"} or not isinstance(answer["error"], dict):
+        return [f"not an error object: {str(answer)[:200]}"]
+    err = answer["error"]
+    out = []
+    if set(err) != {"code", "message", "details"}:
+        out.append(f"error keys {sorted(err)}")
+    if not isinstance(err.get("code"), str) or not isinstance(err.get("message"), str):
+        out.append("error code or message is not a string")
+    details = err.get("details")
+    if not isinstance(details, list) or not all(
+        isinstance(d, dict) and set(d) == {"field", "message"} for d in details
+    ):
+        out.append(f"error details malformed: {details!r:.200}")
+    return out
