@@ -1,0 +1,874 @@
+"""Closed-loop simulation: replan every ``replan_period`` from the vehicle's state, drive the plan's
+first stretch with a kinematic bicycle model and a simple tracker, record everything, score the run.
+
+Vehicle model — kinematic bicycle referenced at the geometric centre ``(x, y)``, which sits midway
+between the axles (wheelbase ``ℓ``, ``ℓ_r = ℓ/2`` from the rear axle), with body yaw ``ψ`` [rad],
+speed ``v`` [m/s] of the centre and front-wheel steering angle ``δ`` [rad]::
+
+    β = atan(ℓ_r/ℓ · tan δ)            slip angle of the centre
+    ẋ = v cos(ψ + β),  ẏ = v sin(ψ + β),  ψ̇ = v sin β / ℓ_r,  v̇ = a  (v ≥ 0)
+
+At constant ``δ`` the centre runs on a circle of curvature ``κ = sin β / ℓ_r`` [1/m] — the path
+curvature the planner speaks of — and its direction of travel, the *course* ``χ = ψ + β``, is what the
+planner calls the heading (a trajectory point's heading is its path's tangent). The footprint,
+``length × width`` centred at ``(x, y)``, is turned by the body yaw ``ψ``, so in a turn it is yawed by
+``β`` against the path (≈ 11° at κ = 0.14 1/m for a 4.5 m car): the simulator scores collisions with
+that real footprint, not with the planner's approximation.
+
+Inputs are held for a sub-step of ``h = replan_period / substeps`` (zero-order hold, 100 Hz by
+default): the steering moves towards its command at most ``max_steering_rate·h``, then the motion
+over ``h`` is integrated *exactly* — an arc of curvature ``κ(δ)`` and length ``v h + a h²/2`` (stopping
+at ``v = 0``; the vehicle never reverses).
+
+Tracker — feed-forward plus feedback, recomputed every sub-step:
+
+* lateral: the centre is projected on the plan's path near where the plan is at this time; with the
+  lateral error ``e`` [m] (left positive) and course error ``e_χ`` [rad] to the path there,
+  ``κ_cmd = κ_plan − e/ℓ_d² − 2 sin(e_χ)/ℓ_d`` (for small errors ``e″ + (2/ℓ_d) e′ + e/ℓ_d² = 0`` along
+  the path: critically damped over the preview distance ``ℓ_d = max(min_preview, preview_time·v)``);
+* longitudinal: ``a_cmd = a_plan(τ) + k_v (v_plan(τ) − v) + k_s (σ_plan(τ) − σ)`` with ``σ`` the
+  projection's arc length along the plan, clipped to the vehicle's limits.
+
+The plan's path is followed, not re-created: the simulator's only knowledge of the road is what it
+hands the planner. At sim time ``T`` the problem sent has the vehicle's state as ego and every
+dynamic obstacle's prediction shifted by ``T`` (:func:`shift_obstacle`); static obstacles unchanged.
+A plan that raises a :class:`~planner.errors.PlannerError` is a failure step: the vehicle brakes at
+its full deceleration for that step. The run stops at the goal, at the first collision, or at
+``duration``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, Literal
+
+import numpy as np
+import shapely
+from numpy.typing import NDArray
+from shapely.geometry.base import BaseGeometry
+
+from planner.candidates import CandidateSet
+from planner.collision import box_corners, footprints, obstacle_shape, prediction_at
+from planner.errors import InvalidInputError, PlannerError
+from planner.frenet import to_frenet
+from planner.pipeline import PlanResult, plan
+from planner.problem import DynamicObstacle, Ego, Obstacle, PlanningProblem, Vehicle
+from planner.reference import FloatArray, ReferenceLine, build_reference, widths_at
+from planner.trajectory import Trajectory
+
+StepStatus = Literal["ok", "stopped", "fallback", "error"]
+Termination = Literal["goal", "collision", "timeout"]
+
+#: the default goal is the reference's end less this many vehicle lengths [-]
+GOAL_MARGIN_LENGTHS = 1.0
+#: default duration: this many times the time to drive the rest of the reference at the target speed…
+DURATION_FACTOR = 2.0
+#: … plus this [s]
+DURATION_SLACK = 20.0
+#: moving: the centre travelled more than this in a step [m]
+MOVING = 1e-3
+#: decreasing s: by more than this [m] (TransF-κ rounding)
+S_TOLERANCE = 1e-6
+#: the plan's path is searched for the projection this far either side of where the plan is now [m]
+PROJECTION_WINDOW = 5.0
+
+
+# --------------------------------------------------------------------------------------------------
+# Vehicle model
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BicycleModel:
+    """Kinematic bicycle referenced at the centre (see the module docstring).
+
+    Attributes:
+        wheelbase: ``ℓ`` [m].
+        rear_to_centre: ``ℓ_r``, rear axle to the geometric centre [m]; 0 puts the centre on the rear
+            axle, so that the footprint turns with the path (the planner's own assumption, β = 0).
+        max_steering: largest ``|δ|`` [rad].
+        max_steering_rate: largest ``|δ̇|`` [rad/s].
+        substeps: sub-steps per replan period (inputs held over each).
+    """
+
+    wheelbase: float
+    rear_to_centre: float
+    max_steering: float
+    max_steering_rate: float = 0.7
+    substeps: int = 10
+
+    @classmethod
+    def for_vehicle(cls, vehicle: Vehicle, **overrides: Any) -> BicycleModel:
+        """Wheelbase ``0.6·length``, centre midway between the axles, steering limited to the
+        vehicle's ``max_curvature``."""
+        wheelbase = 0.6 * vehicle.length
+        base = replace(
+            cls(wheelbase=wheelbase, rear_to_centre=0.5 * wheelbase, max_steering=np.pi / 3), **overrides
+        )
+        limit = vehicle.max_curvature
+        if base.rear_to_centre > 0.0:
+            limit = min(limit, 0.999 / base.rear_to_centre)
+        return replace(base, max_steering=base.steering_for(limit))
+
+    def slip_angle(self, steering: float) -> float:
+        """``β`` [rad] of the centre at steering ``δ`` [rad]."""
+        return math.atan(self.rear_to_centre / self.wheelbase * math.tan(steering))
+
+    def curvature(self, steering: float) -> float:
+        """Path curvature of the centre [1/m] at steering ``δ`` [rad]: ``sin β / ℓ_r = tan δ · cos β / ℓ``."""
+        return math.tan(steering) * math.cos(self.slip_angle(steering)) / self.wheelbase
+
+    def steering_for(self, curvature: float) -> float:
+        """The steering angle [rad] whose centre path has ``curvature`` [1/m] (``|κ ℓ_r|`` clipped below 1):
+        ``tan δ = κ ℓ / cos β`` with ``sin β = κ ℓ_r``."""
+        sin_beta = float(np.clip(curvature * self.rear_to_centre, -0.999, 0.999))
+        return math.atan(curvature * self.wheelbase / math.sqrt(1.0 - sin_beta**2))
+
+
+@dataclass(frozen=True)
+class VehicleState:
+    """The simulated vehicle at time ``t`` [s]: centre ``x, y`` [m], body ``yaw`` [rad], ``steering``
+    [rad], speed [m/s] and acceleration [m/s²] of the centre; ``course`` [rad] (direction of travel)
+    and path ``curvature`` [1/m] follow from them."""
+
+    t: float
+    x: float
+    y: float
+    yaw: float
+    steering: float
+    speed: float
+    acceleration: float
+    course: float
+    curvature: float
+
+    def as_ego(self) -> Ego:
+        """The planner's ego: its heading is the centre's direction of travel."""
+        return Ego(
+            x=self.x,
+            y=self.y,
+            heading=self.course,
+            speed=self.speed,
+            acceleration=self.acceleration,
+            curvature=self.curvature,
+        )
+
+
+def initial_state(model: BicycleModel, ego: Ego, vehicle: Vehicle) -> VehicleState:
+    """The vehicle at an ego state (heading read as the course; unknown curvature taken as 0)."""
+    curvature = float(np.clip(ego.curvature or 0.0, -vehicle.max_curvature, vehicle.max_curvature))
+    steering = float(np.clip(model.steering_for(curvature), -model.max_steering, model.max_steering))
+    beta = model.slip_angle(steering)
+    return VehicleState(
+        t=0.0,
+        x=ego.x,
+        y=ego.y,
+        yaw=ego.heading - beta,
+        steering=steering,
+        speed=max(ego.speed, 0.0),
+        acceleration=ego.acceleration,
+        course=ego.heading,
+        curvature=model.curvature(steering),
+    )
+
+
+def step_exact(
+    model: BicycleModel, state: VehicleState, acceleration: float, steering: float, h: float
+) -> VehicleState:
+    """Hold ``acceleration`` [m/s²] and ``steering`` [rad] for ``h`` [s] and integrate exactly.
+
+    The steering is applied as given (limits are the caller's, see :func:`advance`). The centre moves
+    along an arc of curvature ``κ(δ)`` by ``v h + a h²/2`` (up to where the speed reaches 0); the yaw
+    turns by ``κ`` times that distance.
+    """
+    beta = model.slip_angle(steering)
+    kappa = model.curvature(steering)
+    v0 = state.speed
+    if acceleration < 0.0 and v0 + acceleration * h <= 0.0:
+        stop = -v0 / acceleration if v0 > 0.0 else 0.0
+        dist = v0 * stop + 0.5 * acceleration * stop**2
+        v1, a1 = 0.0, 0.0
+    else:
+        dist = v0 * h + 0.5 * acceleration * h**2
+        v1, a1 = v0 + acceleration * h, acceleration
+    chi0 = state.yaw + beta
+    turn = kappa * dist
+    if abs(turn) < 1e-9:
+        dx = dist * (math.cos(chi0) - 0.5 * turn * math.sin(chi0))
+        dy = dist * (math.sin(chi0) + 0.5 * turn * math.cos(chi0))
+    else:
+        dx = (math.sin(chi0 + turn) - math.sin(chi0)) / kappa
+        dy = (math.cos(chi0) - math.cos(chi0 + turn)) / kappa
+    yaw = state.yaw + turn
+    return VehicleState(
+        t=state.t + h,
+        x=state.x + dx,
+        y=state.y + dy,
+        yaw=yaw,
+        steering=steering,
+        speed=v1,
+        acceleration=a1,
+        course=yaw + beta,
+        curvature=kappa,
+    )
+
+
+def advance(
+    model: BicycleModel,
+    vehicle: Vehicle,
+    state: VehicleState,
+    acceleration: float,
+    curvature: float,
+    h: float,
+) -> VehicleState:
+    """One sub-step towards commanded ``acceleration`` [m/s²] and path ``curvature`` [1/m]: both
+    clipped to the vehicle's limits, the steering moved at most ``max_steering_rate·h``."""
+    a = float(np.clip(acceleration, -vehicle.max_deceleration, vehicle.max_acceleration))
+    target = float(np.clip(model.steering_for(curvature), -model.max_steering, model.max_steering))
+    reach = model.max_steering_rate * h
+    steering = state.steering + float(np.clip(target - state.steering, -reach, reach))
+    return step_exact(model, state, a, steering, h)
+
+
+# --------------------------------------------------------------------------------------------------
+# Tracker
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TrackerGains:
+    """Gains of the tracker: preview ``ℓ_d = max(min_preview, preview_time·v)`` [m, s]; speed gain
+    ``k_v`` [1/s]; station gain ``k_s`` [1/s²]."""
+
+    preview_time: float = 1.0
+    min_preview: float = 4.0
+    speed_gain: float = 1.0
+    station_gain: float = 0.5
+
+
+@dataclass(frozen=True)
+class PlanPath:
+    """A plan's trajectory prepared for tracking: arc length ``sigma`` [m] of its points, their segments,
+    unwrapped heading [rad]."""
+
+    trajectory: Trajectory
+    sigma: FloatArray
+    start: FloatArray
+    direction: FloatArray
+    length: FloatArray
+    heading: FloatArray
+
+    @classmethod
+    def of(cls, traj: Trajectory) -> PlanPath:
+        xy = np.column_stack((traj.x, traj.y))
+        seg = np.diff(xy, axis=0)
+        length = np.hypot(seg[:, 0], seg[:, 1])
+        direction = seg / np.where(length > 0.0, length, 1.0)[:, None]
+        sigma = np.concatenate(([0.0], np.cumsum(length)))
+        return cls(traj, sigma, xy[:-1], direction, length, np.unwrap(traj.heading))
+
+
+@dataclass(frozen=True)
+class TrackerOutput:
+    """Commands [m/s², 1/m] and the errors behind them: lateral [m], course [rad], station [m]."""
+
+    acceleration: float
+    curvature: float
+    lateral_error: float
+    course_error: float
+    station_error: float
+
+
+def track(path: PlanPath, tau: float, state: VehicleState, gains: TrackerGains) -> TrackerOutput:
+    """The tracker's commands at time ``tau`` [s] after the plan's start (see the module docstring)."""
+    traj = path.trajectory
+    sigma_ref = float(np.interp(tau, traj.t, path.sigma))
+    v_ref = float(np.interp(tau, traj.t, traj.v))
+    a_ref = float(np.interp(tau, traj.t, traj.a))
+    near = (
+        (path.sigma[1:] >= sigma_ref - PROJECTION_WINDOW)
+        & (path.sigma[:-1] <= sigma_ref + PROJECTION_WINDOW)
+        & (path.length > 1e-9)
+    )
+    if not near.any():  # a plan standing still: nothing to steer along
+        return TrackerOutput(
+            acceleration=a_ref + gains.speed_gain * (v_ref - state.speed),
+            curvature=float(traj.curvature[0]),
+            lateral_error=0.0,
+            course_error=0.0,
+            station_error=0.0,
+        )
+    idx = np.flatnonzero(near)
+    rel = np.array([state.x, state.y]) - path.start[idx]
+    along = np.clip(np.einsum("ij,ij->i", rel, path.direction[idx]), 0.0, path.length[idx])
+    offset = rel - along[:, None] * path.direction[idx]
+    best = int(np.argmin(np.hypot(offset[:, 0], offset[:, 1])))
+    k = idx[best]
+    sigma = float(path.sigma[k] + along[best])
+    d = path.direction[k]
+    lateral = float(d[0] * offset[best, 1] - d[1] * offset[best, 0])
+    heading = float(np.interp(sigma, path.sigma, path.heading))
+    kappa_ff = float(np.interp(sigma, path.sigma, traj.curvature))
+    course_error = math.remainder(state.course - heading, 2.0 * math.pi)
+    preview = max(gains.min_preview, gains.preview_time * state.speed)
+    curvature = kappa_ff - lateral / preview**2 - 2.0 * math.sin(course_error) / preview
+    station = sigma_ref - sigma
+    acceleration = a_ref + gains.speed_gain * (v_ref - state.speed) + gains.station_gain * station
+    return TrackerOutput(acceleration, curvature, lateral, course_error, station)
+
+
+# --------------------------------------------------------------------------------------------------
+# Scenario: goal, moving obstacles
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Goal:
+    """Where a run ends well: every criterion given must hold for the vehicle's centre.
+
+    Attributes:
+        s_min: arc length on the reference (TransF-κ) at least this [m].
+        polygon: inside this outline, shape (k, 2) [m], k ≥ 3.
+        position, radius: within ``radius`` [m] of ``position`` (2,) [m].
+    """
+
+    s_min: float | None = None
+    polygon: FloatArray | None = None
+    position: FloatArray | None = None
+    radius: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.s_min is None and self.polygon is None and self.position is None:
+            raise InvalidInputError("give at least one of s_min, polygon or position", field="goal")
+        if (self.position is None) != (self.radius is None):
+            raise InvalidInputError("position and radius go together", field="goal.radius")
+        if self.radius is not None and not self.radius > 0.0:
+            raise InvalidInputError("must be positive", field="goal.radius")
+        if self.polygon is not None:
+            poly = np.asarray(self.polygon, dtype=float)
+            if poly.ndim != 2 or poly.shape[0] < 3 or poly.shape[1] != 2 or not np.isfinite(poly).all():
+                raise InvalidInputError("must be ≥ 3 finite points [x, y]", field="goal.polygon")
+            object.__setattr__(self, "polygon", poly)
+        if self.position is not None:
+            pos = np.asarray(self.position, dtype=float)
+            if pos.shape != (2,) or not np.isfinite(pos).all():
+                raise InvalidInputError("must be a finite point [x, y]", field="goal.position")
+            object.__setattr__(self, "position", pos)
+
+    def reached(self, x: float, y: float, s: float) -> bool:
+        """Whether a centre at ``(x, y)`` [m] with arc length ``s`` [m] meets every criterion."""
+        if self.s_min is not None and s < self.s_min:
+            return False
+        if self.polygon is not None and not shapely.Polygon(self.polygon).covers(shapely.Point(x, y)):
+            return False
+        if self.position is not None and self.radius is not None:
+            return bool(math.hypot(x - self.position[0], y - self.position[1]) <= self.radius)
+        return True
+
+
+def default_goal(ref: ReferenceLine, vehicle: Vehicle) -> Goal:
+    """The reference's end less :data:`GOAL_MARGIN_LENGTHS` vehicle lengths."""
+    return Goal(s_min=ref.length - GOAL_MARGIN_LENGTHS * vehicle.length)
+
+
+def default_duration(ref: ReferenceLine, problem: PlanningProblem) -> float:
+    """A generous bound [s]: twice the time to drive the rest of the reference at the target speed,
+    plus :data:`DURATION_SLACK`."""
+    start = float(to_frenet(ref, [[problem.ego.x, problem.ego.y]]).s[0])
+    target = problem.options.target_speed
+    speed = problem.vehicle.max_speed if target is None else min(target, problem.vehicle.max_speed)
+    return DURATION_FACTOR * max(ref.length - start, 0.0) / max(speed, 1.0) + DURATION_SLACK
+
+
+def shift_obstacle(obstacle: Obstacle, t0: float) -> Obstacle:
+    """The obstacle as seen at sim time ``t0`` [s]: a dynamic one's prediction re-based to start at
+    ``t0`` (states before it dropped, the state at ``t0`` interpolated in front); a static one as is."""
+    if not isinstance(obstacle, DynamicObstacle) or t0 == 0.0:
+        return obstacle
+    pred = obstacle.prediction
+    later = pred[pred[:, 0] > t0]
+    if pred[0, 0] < t0:
+        now = np.concatenate(([t0], prediction_at(obstacle, np.array([t0]))[0]))
+        later = np.vstack((now[None, :], later))
+    shifted = later.copy()
+    shifted[:, 0] -= t0
+    return replace(obstacle, prediction=shifted)
+
+
+def problem_at(problem: PlanningProblem, state: VehicleState) -> PlanningProblem:
+    """The problem the planner gets at ``state.t``: the vehicle as ego, predictions shifted."""
+    return replace(
+        problem,
+        ego=state.as_ego(),
+        obstacles=tuple(shift_obstacle(ob, state.t) for ob in problem.obstacles),
+    )
+
+
+def obstacle_outlines(problem: PlanningProblem, t: float) -> tuple[tuple[str, FloatArray], ...]:
+    """Every obstacle's outline at sim time ``t`` [s], as ``(id, coordinates (k, 2))``."""
+    return tuple(
+        (ob.id, np.asarray(shapely.get_coordinates(obstacle_shape(ob, t).exterior)))
+        for ob in problem.obstacles
+    )
+
+
+# --------------------------------------------------------------------------------------------------
+# Records
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SimStep:
+    """One replan cycle starting at ``state.t``.
+
+    Attributes:
+        state: the vehicle when the plan was asked for.
+        s, d: its Frenet coordinates by TransF-κ [m].
+        status: the plan's status, or ``error`` when planning raised a domain error (then ``message``
+            says why and ``trajectory`` is None).
+        planning_ms: wall time of the ``plan`` call [ms].
+        trajectory: the plan.
+        candidates_xy: the plan's candidates (N, P, 2) [m], NaN where a point was jumped (Alg. 5).
+        candidates_folded: per candidate, whether it runs backwards or crosses itself (N,).
+        chosen: index of the candidate the plan was built on.
+        obstacles: every obstacle's outline at ``state.t``.
+        max_lateral_error: largest tracking error to the plan over the step [m].
+    """
+
+    state: VehicleState
+    s: float
+    d: float
+    status: StepStatus
+    message: str
+    planning_ms: float
+    trajectory: Trajectory | None
+    candidates_xy: FloatArray | None
+    candidates_folded: NDArray[np.bool_] | None
+    chosen: int | None
+    obstacles: tuple[tuple[str, FloatArray], ...]
+    max_lateral_error: float
+
+
+@dataclass(frozen=True)
+class Motion:
+    """The executed motion at every sub-step, arrays of shape (n,): ``t`` [s], ``x, y`` [m], ``yaw``,
+    ``course``, ``steering`` [rad], ``curvature`` [1/m], ``v`` [m/s], ``a`` [m/s²], ``s, d`` [m] on the
+    reference; ``step`` is the index of the cycle each sample belongs to."""
+
+    t: FloatArray
+    x: FloatArray
+    y: FloatArray
+    yaw: FloatArray
+    course: FloatArray
+    steering: FloatArray
+    curvature: FloatArray
+    v: FloatArray
+    a: FloatArray
+    s: FloatArray
+    d: FloatArray
+    step: NDArray[np.intp]
+
+
+@dataclass(frozen=True)
+class SimMetrics:
+    """What a run did. Lengths [m], times [s], accelerations [m/s²], jerks [m/s³].
+
+    Attributes:
+        generator: the candidates' generator.
+        termination: ``goal``, ``collision`` or ``timeout``.
+        goal_reached, time_to_goal: whether and when [s] the goal was reached.
+        sim_time, steps: simulated time and replan cycles.
+        distance: distance driven by the centre; ``final_s``: its last arc length on the reference.
+        collisions: sub-steps whose footprint intersects an obstacle; ``collided_with`` their ids.
+        min_clearance: smallest footprint-to-obstacle distance (None without obstacles).
+        backward_steps: cycles whose centre moved and ended with a smaller ``s``.
+        fold_steps: cycles with an executed sample where ``κ·d ≥ 1``.
+        max_lane_departure: farthest a footprint corner got outside the lane (≤ 0: inside).
+        max_lateral_acceleration: ``max v²|κ|``; ``max_longitudinal_jerk``, ``max_lateral_jerk``: of
+            ``a`` and ``v²κ`` by differences between consecutive sub-steps at which the vehicle moves.
+        max_tracking_error: largest lateral error of the tracker to the plan.
+        planning_ms: ``median``, ``p95``, ``max`` of the plan calls' wall time [ms].
+        status_counts: cycles per plan status (``ok``, ``stopped``, ``fallback``, ``error``).
+        folded_candidates: ``mean`` folded candidates per cycle, ``cycles`` with any, ``chosen``
+            cycles whose chosen candidate folded.
+    """
+
+    generator: str
+    termination: Termination
+    goal_reached: bool
+    time_to_goal: float | None
+    sim_time: float
+    steps: int
+    distance: float
+    final_s: float
+    collisions: int
+    collided_with: tuple[str, ...]
+    min_clearance: float | None
+    backward_steps: int
+    fold_steps: int
+    max_lane_departure: float
+    max_lateral_acceleration: float
+    max_longitudinal_jerk: float
+    max_lateral_jerk: float
+    max_tracking_error: float
+    planning_ms: dict[str, float]
+    status_counts: dict[str, int]
+    folded_candidates: dict[str, float]
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON data (floats rounded to 4 decimals, tuples as lists)."""
+        out: dict[str, Any] = {}
+        for f in fields(self):
+            out[f.name] = _plain(getattr(self, f.name))
+        return out
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, tuple | list):
+        return [_plain(v) for v in value]
+    if isinstance(value, bool | str) or value is None:
+        return value
+    if isinstance(value, int | np.integer):
+        return int(value)
+    number = float(value)
+    return round(number, 4) if math.isfinite(number) else None
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """A run: the problem, goal and model it ran with, every cycle, the executed motion, its metrics."""
+
+    problem: PlanningProblem
+    goal: Goal
+    model: BicycleModel
+    replan_period: float
+    duration: float
+    steps: tuple[SimStep, ...]
+    motion: Motion
+    metrics: SimMetrics
+    termination: Termination
+    reference: ReferenceLine = field(repr=False)
+
+
+# --------------------------------------------------------------------------------------------------
+# The loop
+# --------------------------------------------------------------------------------------------------
+
+
+def _hits(
+    problem: PlanningProblem, static: list[tuple[str, BaseGeometry]], states: list[VehicleState]
+) -> tuple[NDArray[np.bool_], FloatArray, list[str]]:
+    """Per state: whether the footprint hits an obstacle, its clearance [m]; ids of obstacles hit."""
+    x = np.array([st.x for st in states])
+    y = np.array([st.y for st in states])
+    yaw = np.array([st.yaw for st in states])
+    t = np.array([st.t for st in states])
+    prints = footprints(x, y, yaw, problem.vehicle)
+    clearance = np.full(len(states), np.inf)
+    hit = np.zeros(len(states), dtype=bool)
+    ids: list[str] = []
+    shapes: list[tuple[str, Any]] = list(static)
+    for ob in problem.obstacles:
+        if isinstance(ob, DynamicObstacle):
+            pose = prediction_at(ob, t)
+            shapes.append(
+                (
+                    ob.id,
+                    shapely.polygons(box_corners(pose[:, 0], pose[:, 1], pose[:, 2], ob.length, ob.width)),
+                )
+            )
+    for ob_id, shape in shapes:
+        dist = np.asarray(shapely.distance(prints, shape), dtype=float)
+        inter = np.asarray(shapely.intersects(prints, shape), dtype=bool)
+        clearance = np.minimum(clearance, np.where(inter, 0.0, dist))
+        if inter.any():
+            ids.append(ob_id)
+        hit |= inter
+    return hit, clearance, ids
+
+
+def _candidates(ref: ReferenceLine, result: PlanResult) -> tuple[FloatArray | None, NDArray[np.bool_] | None]:
+    cands = result.candidates
+    if cands is None:
+        return None, None
+    xy = np.where(cands.valid[..., None], cands.xy, np.nan)
+    return xy, folded_candidates(ref, cands)
+
+
+def folded_candidates(ref: ReferenceLine, cands: CandidateSet) -> NDArray[np.bool_]:
+    """Per candidate, whether its kept points run backwards along the reference (TransF-κ ``s`` not
+    increasing) or cross themselves — :func:`planner.validation.folds_back`, over all candidates at once."""
+    n, p = cands.valid.shape
+    s = to_frenet(ref, cands.xy.reshape(-1, 2)).s.reshape(n, p)
+    # consecutive kept points: compare each kept point with the previous kept one
+    order = np.where(cands.valid, np.arange(p), -1)
+    prev = np.maximum.accumulate(np.concatenate((np.full((n, 1), -1), order[:, :-1]), axis=1), axis=1)
+    has_prev = cands.valid & (prev >= 0)
+    s_prev = np.take_along_axis(s, np.maximum(prev, 0), axis=1)
+    backward = (has_prev & (s <= s_prev)).any(axis=1)
+    lines = [shapely.LineString(cands.points(i)[2]) if cands.valid[i].sum() >= 3 else None for i in range(n)]
+    simple = np.array([line is None or bool(line.is_simple) for line in lines], dtype=bool)
+    return np.asarray(backward | ~simple)
+
+
+def simulate(
+    problem: PlanningProblem,
+    *,
+    duration: float | None = None,
+    replan_period: float = 0.1,
+    goal: Goal | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    model: BicycleModel | None = None,
+    gains: TrackerGains | None = None,
+) -> SimResult:
+    """Drive ``problem`` in closed loop (see the module docstring).
+
+    Args:
+        problem: the scenario at ``t = 0``; its ego is the vehicle's initial state.
+        duration: longest simulated time [s]; default :func:`default_duration`.
+        replan_period: time between plans [s]; the plan's first ``replan_period`` is executed.
+        goal: default :func:`default_goal`.
+        progress: called with ``(cycles done, most cycles)`` after each cycle.
+        model: vehicle model; default :meth:`BicycleModel.for_vehicle`.
+        gains: tracker gains; default :class:`TrackerGains`.
+
+    A ``problem.options.time_budget_ms`` is kept: plans that overrun it become fallbacks, so the run
+    then depends on the machine's speed.
+
+    Raises:
+        InvalidInputError: for a non-positive ``duration`` or ``replan_period``, or a reference the
+            planner refuses.
+    """
+    if not replan_period > 0.0:
+        raise InvalidInputError("must be positive", field="replan_period")
+    ref = build_reference(problem.reference_line)
+    if duration is None:
+        duration = default_duration(ref, problem)
+    if not duration > 0.0:
+        raise InvalidInputError("must be positive", field="duration")
+    goal = default_goal(ref, problem.vehicle) if goal is None else goal
+    model = BicycleModel.for_vehicle(problem.vehicle) if model is None else model
+    gains = TrackerGains() if gains is None else gains
+    vehicle = problem.vehicle
+    asked = replace(problem, options=replace(problem.options, return_candidates=True))
+    static = [(ob.id, obstacle_shape(ob)) for ob in problem.obstacles if not isinstance(ob, DynamicObstacle)]
+    total = max(1, math.ceil(duration / replan_period - 1e-9))
+    h = replan_period / model.substeps
+
+    state = initial_state(model, problem.ego, vehicle)
+    samples: list[VehicleState] = [state]
+    sample_step: list[int] = [0]
+    steps: list[SimStep] = []
+    min_clearance = np.inf
+    collisions = 0
+    collided: list[str] = []
+    termination: Termination = "timeout"
+    time_to_goal: float | None = None
+    fr = to_frenet(ref, [[state.x, state.y]])
+    s_now, d_now = float(fr.s[0]), float(fr.d[0])
+
+    hit0, clear0, ids0 = _hits(problem, static, [state])
+    min_clearance = float(clear0.min()) if clear0.size else np.inf
+    if hit0.any():
+        collisions, collided, termination = 1, ids0, "collision"
+    elif goal.reached(state.x, state.y, s_now):
+        termination, time_to_goal = "goal", 0.0
+
+    for k in range(total if termination == "timeout" else 0):
+        asked_now = problem_at(asked, state)
+        t0 = time.perf_counter()
+        result: PlanResult | None
+        try:
+            result = plan(asked_now)
+            error = ""
+        except PlannerError as exc:
+            result, error = None, str(exc)
+        planning_ms = 1e3 * (time.perf_counter() - t0)
+
+        cycle: list[VehicleState] = []
+        worst = 0.0
+        path = PlanPath.of(result.trajectory) if result is not None else None
+        for i in range(model.substeps):
+            if path is None:
+                a_cmd, k_cmd = -vehicle.max_deceleration, state.curvature
+            else:
+                out = track(path, i * h, state, gains)
+                a_cmd, k_cmd = out.acceleration, out.curvature
+                worst = max(worst, abs(out.lateral_error))
+            state = advance(model, vehicle, state, a_cmd, k_cmd, h)
+            cycle.append(state)
+        # t accumulates exactly on the replan grid
+        state = replace(state, t=(k + 1) * replan_period)
+        cycle[-1] = state
+
+        xy, folded = _candidates(ref, result) if result is not None else (None, None)
+        steps.append(
+            SimStep(
+                state=samples[-1],
+                s=s_now,
+                d=d_now,
+                status="error" if result is None else result.status,
+                message=error if result is None else result.message,
+                planning_ms=planning_ms,
+                trajectory=None if result is None else result.trajectory,
+                candidates_xy=xy,
+                candidates_folded=folded,
+                chosen=None if result is None else result.diagnostics.chosen_candidate,
+                obstacles=obstacle_outlines(problem, samples[-1].t),
+                max_lateral_error=worst,
+            )
+        )
+        samples.extend(cycle)
+        sample_step.extend([k] * len(cycle))
+        fr = to_frenet(ref, [[state.x, state.y]])
+        s_now, d_now = float(fr.s[0]), float(fr.d[0])
+
+        hit, clearance, ids = _hits(problem, static, cycle)
+        if clearance.size:
+            min_clearance = min(min_clearance, float(clearance.min()))
+        if progress is not None:
+            progress(k + 1, total)
+        if hit.any():
+            collisions += int(hit.sum())
+            collided.extend(i for i in ids if i not in collided)
+            termination = "collision"
+            break
+        if goal.reached(state.x, state.y, s_now):
+            termination, time_to_goal = "goal", state.t
+            break
+
+    motion = _motion(ref, samples, sample_step)
+    metrics = _metrics(
+        ref,
+        problem,
+        steps,
+        motion,
+        termination=termination,
+        time_to_goal=time_to_goal,
+        collisions=collisions,
+        collided=collided,
+        min_clearance=min_clearance if problem.obstacles else None,
+    )
+    return SimResult(
+        problem=problem,
+        goal=goal,
+        model=model,
+        replan_period=replan_period,
+        duration=duration,
+        steps=tuple(steps),
+        motion=motion,
+        metrics=metrics,
+        termination=termination,
+        reference=ref,
+    )
+
+
+def _motion(ref: ReferenceLine, samples: list[VehicleState], step: list[int]) -> Motion:
+    cols = {
+        name: np.array([getattr(st, name) for st in samples], dtype=float)
+        for name in ("t", "x", "y", "yaw", "course", "steering", "curvature", "speed", "acceleration")
+    }
+    fr = to_frenet(ref, np.column_stack((cols["x"], cols["y"])))
+    return Motion(
+        t=cols["t"],
+        x=cols["x"],
+        y=cols["y"],
+        yaw=cols["yaw"],
+        course=cols["course"],
+        steering=cols["steering"],
+        curvature=cols["curvature"],
+        v=cols["speed"],
+        a=cols["acceleration"],
+        s=fr.s,
+        d=fr.d,
+        step=np.asarray(step, dtype=np.intp),
+    )
+
+
+def _per_cycle_any(flags: NDArray[np.bool_], step: NDArray[np.intp], cycles: int) -> int:
+    if cycles == 0:
+        return 0
+    return int(np.count_nonzero(np.bincount(step[flags], minlength=cycles)))
+
+
+def _metrics(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    steps: list[SimStep],
+    motion: Motion,
+    *,
+    termination: Termination,
+    time_to_goal: float | None,
+    collisions: int,
+    collided: list[str],
+    min_clearance: float | None,
+) -> SimMetrics:
+    vehicle = problem.vehicle
+    n = len(steps)
+    # per cycle: the samples at the replan instants (the cycle's start and its end)
+    ends = np.flatnonzero(np.diff(np.concatenate((motion.step, [n]))) != 0) if n else np.zeros(0, np.intp)
+    s_cycle = np.concatenate(([motion.s[0]], motion.s[ends])) if n else motion.s[:1]
+    xy = np.column_stack((motion.x, motion.y))
+    xy_cycle = np.vstack((xy[:1], xy[ends])) if n else xy[:1]
+    moved = np.hypot(*np.diff(xy_cycle, axis=0).T) > MOVING
+    backward = int(np.count_nonzero(moved & (np.diff(s_cycle) < -S_TOLERANCE)))
+    kappa = ref.kappa_at(motion.s)
+    folded = kappa * motion.d >= 1.0
+    fold_steps = _per_cycle_any(folded[1:], motion.step[1:], n)
+
+    corners = box_corners(motion.x, motion.y, motion.yaw, vehicle.length, vehicle.width).reshape(-1, 2)
+    cf = to_frenet(ref, corners)
+    left = widths_at(problem.lane.left_width, ref, cf.s, field_name="lane.left_width")
+    right = widths_at(problem.lane.right_width, ref, cf.s, field_name="lane.right_width")
+    departure = float(np.max(np.maximum(cf.d - left, -right - cf.d)))
+
+    lat = motion.v**2 * motion.curvature
+    dt = np.diff(motion.t)
+    safe = np.where(dt > 0, dt, np.inf)
+    # while moving: the step to a = 0 when the vehicle comes to rest is the integrator's, not the motion's
+    moving = (motion.v[:-1] > 0.0) & (motion.v[1:] > 0.0)
+    jerk_long = np.where(moving, np.abs(np.diff(motion.a)) / safe, 0.0)
+    jerk_lat = np.where(moving, np.abs(np.diff(lat)) / safe, 0.0)
+
+    ms = np.array([st.planning_ms for st in steps])
+    status_counts = {
+        name: sum(st.status == name for st in steps) for name in ("ok", "stopped", "fallback", "error")
+    }
+    flags = [(st.candidates_folded, st.chosen) for st in steps if st.candidates_folded is not None]
+    folded_counts = np.array([int(np.count_nonzero(f)) for f, _ in flags])
+    chosen_folded = sum(1 for f, chosen in flags if chosen is not None and bool(f[chosen]))
+    return SimMetrics(
+        generator=problem.options.generator,
+        termination=termination,
+        goal_reached=termination == "goal",
+        time_to_goal=time_to_goal,
+        sim_time=float(motion.t[-1]),
+        steps=n,
+        distance=float(np.sum(np.hypot(np.diff(motion.x), np.diff(motion.y)))),
+        final_s=float(motion.s[-1]),
+        collisions=collisions,
+        collided_with=tuple(collided),
+        min_clearance=min_clearance,
+        backward_steps=backward,
+        fold_steps=fold_steps,
+        max_lane_departure=departure,
+        max_lateral_acceleration=float(np.max(np.abs(lat))),
+        max_longitudinal_jerk=float(jerk_long.max()) if jerk_long.size else 0.0,
+        max_lateral_jerk=float(jerk_lat.max()) if jerk_lat.size else 0.0,
+        max_tracking_error=max((st.max_lateral_error for st in steps), default=0.0),
+        planning_ms={
+            "median": float(np.median(ms)) if n else 0.0,
+            "p95": float(np.percentile(ms, 95)) if n else 0.0,
+            "max": float(ms.max()) if n else 0.0,
+        },
+        status_counts=status_counts,
+        folded_candidates={
+            "mean": float(folded_counts.mean()) if folded_counts.size else 0.0,
+            "cycles": int(np.count_nonzero(folded_counts)),
+            "chosen": chosen_folded,
+        },
+    )
