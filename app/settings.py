@@ -43,6 +43,13 @@ class Settings(BaseSettings):
         description="Processes per worker that run plans; unset: CPUs ÷ workers (at least 1); 0: one "
         "thread of the worker itself (no process pool).",
     )
+    time_budget_ms: float = Field(
+        1000.0,
+        ge=1.0,
+        le=60_000.0,
+        description="Compute budget of a plan whose request sets no options.time_budget_ms [ms]: a stage "
+        "that ends past it makes the answer a braking fallback.",
+    )
     max_pending_plans: int = Field(
         256, ge=1, le=100_000, description="Plans queued or running per worker; one more is a 503."
     )

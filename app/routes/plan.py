@@ -41,9 +41,11 @@ class PlanOutcome:
     timing_ms: dict[str, float]
 
 
-def compute_plan(body: PlanningRequest) -> PlanOutcome:
-    """Plan ``body`` and write the answer (runs in a plan process; planner errors propagate)."""
-    result = plan(to_problem(body))
+def compute_plan(job: tuple[PlanningRequest, float | None]) -> PlanOutcome:
+    """Plan a request with the server's default compute budget [ms] and write the answer (runs in a
+    plan process; planner errors propagate)."""
+    body, time_budget_ms = job
+    result = plan(to_problem(body, time_budget_ms=time_budget_ms))
     data = plan_data(result)
     timing = {stage: round(float(ms), 3) for stage, ms in result.diagnostics.timing_ms.items()}
     return PlanOutcome(pydantic_core.to_json(data), result.status, timing)
@@ -51,7 +53,7 @@ def compute_plan(body: PlanningRequest) -> PlanOutcome:
 
 def warm_up() -> None:
     """Plan the demo once, so that a process's first plan does not build the speed problem."""
-    compute_plan(demo_request())
+    compute_plan((demo_request(), None))
 
 
 @router.post(
@@ -83,7 +85,8 @@ async def plan_trajectory(
     """Trajectory from the ego every `options.dt` [s]; a planning failure is a 200 with status `fallback`."""
     executor: PlanExecutor = request.app.state.plan_executor
     try:
-        outcome = await executor.run(compute_plan, body)
+        budget = request.app.state.settings.time_budget_ms
+        outcome = await executor.run(compute_plan, (body, budget))
     except Overloaded as exc:
         response = error_response(503, "overloaded", f"The service is busy: {exc}; retry later.")
         response.headers["Retry-After"] = str(RETRY_AFTER_S)

@@ -221,3 +221,20 @@ def test_answers_match_the_openapi_schema(client: TestClient, demo: dict[str, An
     demo["options"].update(num_candidates=3, return_candidates=True)
     for body in (demo, BLOCKED):
         _check(_plan(client, body), schema, components, "answer")
+
+
+def test_time_budget_from_the_request_or_the_server_default(demo: dict[str, Any]) -> None:
+    from app.main import create_app
+    from app.settings import Settings
+
+    tight = TestClient(create_app(Settings(plan_processes=0, time_budget_ms=1.0)))
+    with tight:
+        answer = tight.post("/v1/plan", json=demo).json()  # the server's 1 ms default
+        assert answer["status"] == "fallback" and "time budget of 1 ms spent" in answer["message"]
+        assert answer["trajectory"][-1]["v"] == pytest.approx(0.0, abs=1e-9)
+        demo["options"]["time_budget_ms"] = 10_000.0  # the request's own budget wins
+        assert tight.post("/v1/plan", json=demo).json()["status"] == "ok"
+        demo["options"]["time_budget_ms"] = 0.0
+        r = tight.post("/v1/plan", json=demo)
+        assert r.status_code == 422
+        assert r.json()["error"]["details"][0]["field"] == "options.time_budget_ms"
