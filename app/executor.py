@@ -1,18 +1,24 @@
 """Where plans run: off the event loop, in a pool of processes, at most so many waiting.
 
-A plan is pure Python and numpy for most of its ~20 ms and holds the GIL nearly all that time. Run in
-the event loop's process, even in a thread, it delays everything the loop does — ``/healthz``
-included — by whole GIL switch intervals per step (measured: 8 plans in flight in threads, /healthz
-p50 45 ms, max 133 ms, and 21 plans/s where one thread alone does 40). So each uvicorn worker keeps a
-pool of ``processes`` worker processes (:class:`concurrent.futures.ProcessPoolExecutor`, spawned, not
-forked from a process with threads) that run the plans, and its own process only parses, validates and
-answers. The pool is bounded twice: ``processes`` plans run at once, and at most ``max_pending`` are
-queued or running (:exc:`Overloaded` beyond, answered 503) so a burst queues in memory rather than
-without end.
+A plan is pure Python and numpy for most of its time and holds the GIL nearly all of it. Run in the
+event loop's process, even in threads, it delays everything the loop does — ``/healthz`` included —
+by whole GIL switch intervals per step (measured with ``bench/load.py``, plans in the threadpool:
+8 clients, /healthz p50 45–60 ms, max 130–195 ms; 200 clients, /healthz waits up to 20 s behind the
+plans in the threadpool). So each uvicorn worker keeps a pool of ``processes`` worker processes
+(:class:`concurrent.futures.ProcessPoolExecutor`, spawned, not forked from a process with threads) that
+run the plans, and its own process only parses, validates and answers (same loads, on 2 CPUs that
+other jobs kept busy: /healthz p50 2–5 ms, max 10–48 ms). The pool processes run at a lower priority
+(:data:`PLAN_NICENESS`), so that a busy CPU still serves the event loop first.
+
+The pool is bounded twice: ``processes`` plans run at once, twice as many are handed to the pool (the
+rest wait in the event loop, where they cost nothing: handed over all at once, a burst of 200 kept the
+pool's helper threads taking the GIL from the loop for 50–270 ms), and at most ``max_pending`` are
+queued or running (:exc:`Overloaded` beyond, answered 503), so a burst queues in memory, not without
+end.
 
 ``processes = 0``, or a pool never started (an app whose lifespan did not run, such as a
-``TestClient`` not used as a context manager), runs the work in one thread of the worker itself, one
-call at a time: the old behaviour, with the GIL caveat above.
+``TestClient`` not used as a context manager), runs the work in a thread of the worker itself, one
+call at a time, with the GIL caveat above.
 
 A pool process that dies (a crash in a native solver) breaks the pool: the calls in flight fail (the
 caller answers 500) and the next call gets a fresh pool.
@@ -21,8 +27,10 @@ caller answers 500) and the next call gets a fresh pool.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import multiprocessing
+import os
 import signal
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -34,6 +42,13 @@ import anyio.to_thread
 
 logger = logging.getLogger(__name__)
 
+#: calls handed to the pool at once per process (one running, one ready to start); the others wait in
+#: the event loop, where waiting costs nothing (the pool's helper threads would take the GIL for each)
+SLOTS_PER_PROCESS = 2
+#: added to the niceness of the pool processes: on a busy CPU the scheduler prefers the worker's event
+#: loop (little CPU, wanted at once) to the plans
+PLAN_NICENESS = 5
+
 A = TypeVar("A")
 R = TypeVar("R")
 
@@ -43,9 +58,12 @@ class Overloaded(Exception):
 
 
 def _process_init(setup: Callable[[], Any] | None) -> None:
-    """First thing in each pool process: leave SIGINT to the parent (which shuts the pool down), then
-    ``setup`` (a failure is logged: the process serves all the same)."""
+    """First thing in each pool process: leave SIGINT to the parent (which shuts the pool down), lower
+    its priority by :data:`PLAN_NICENESS`, then ``setup`` (a failure is logged: the process serves all
+    the same)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with contextlib.suppress(OSError, AttributeError):
+        os.nice(PLAN_NICENESS)
     if setup is not None:
         try:
             setup()
@@ -72,6 +90,7 @@ class PlanExecutor:
         self._setup = setup
         self._pool: ProcessPoolExecutor | None = None
         self._limiter: anyio.CapacityLimiter | None = None
+        self._slots: asyncio.Semaphore | None = None
         self.pending = 0
 
     @property
@@ -92,6 +111,7 @@ class PlanExecutor:
         if self.processes == 0 or self._pool is not None:
             return
         self._pool = self._new_pool()
+        self._slots = asyncio.Semaphore(SLOTS_PER_PROCESS * self.processes)
         loop = asyncio.get_running_loop()
         # one call per process: the pool starts a process per call while none is idle; the first
         # process up may answer them all while the others still run their setup
@@ -112,18 +132,24 @@ class PlanExecutor:
             raise Overloaded(f"{self.pending} plans are queued or running")
         self.pending += 1
         try:
-            pool = self._pool
-            if pool is None:
+            if self._pool is None or self._slots is None:
                 if self._limiter is None:
                     self._limiter = anyio.CapacityLimiter(1)
                 return await anyio.to_thread.run_sync(fn, arg, limiter=self._limiter)
-            try:
-                return await asyncio.wrap_future(pool.submit(fn, arg))
-            except BrokenProcessPool:
-                if self._pool is pool:
-                    logger.error("a plan process died; starting a new pool")
-                    self._pool = self._new_pool()
-                    pool.shutdown(wait=False, cancel_futures=True)
-                raise
+            async with self._slots:
+                return await self._submit(fn, arg)
         finally:
             self.pending -= 1
+
+    async def _submit(self, fn: Callable[[A], R], arg: A) -> R:
+        pool = self._pool
+        if pool is None:
+            raise RuntimeError("the plan pool is shut down")
+        try:
+            return await asyncio.wrap_future(pool.submit(fn, arg))
+        except BrokenProcessPool:
+            if self._pool is pool:
+                logger.error("a plan process died; starting a new pool")
+                self._pool = self._new_pool()
+                pool.shutdown(wait=False, cancel_futures=True)
+            raise

@@ -7,7 +7,9 @@ process's :func:`app.main.create_app` reads them again, from the same environmen
 
 from __future__ import annotations
 
+import math
 import os
+from pathlib import Path
 from typing import Literal
 
 from pydantic import Field, field_validator
@@ -16,12 +18,40 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 LogLevel = Literal["critical", "error", "warning", "info", "debug"]
 
 
-def available_cpus() -> int:
-    """CPUs this process may run on (its affinity mask where the OS has one), at least 1."""
+#: cgroup files with the CPU quota and period of this process's container [µs]: v2, then v1
+CGROUP_CPU_MAX = Path("/sys/fs/cgroup/cpu.max")
+CGROUP_V1_QUOTA = Path("/sys/fs/cgroup/cpu/cpu.cfs_quota_us")
+CGROUP_V1_PERIOD = Path("/sys/fs/cgroup/cpu/cpu.cfs_period_us")
+
+
+def cgroup_cpu_limit() -> float | None:
+    """CPUs the container's cgroup quota allows (``docker run --cpus``, a Kubernetes CPU limit), or None
+    without a quota or outside a cgroup that has one."""
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        quota, period = CGROUP_CPU_MAX.read_text().split()[:2]
+    except (OSError, ValueError):
+        try:
+            quota, period = CGROUP_V1_QUOTA.read_text().strip(), CGROUP_V1_PERIOD.read_text().strip()
+        except OSError:
+            return None
+    try:
+        q, p = int(quota), int(period)
+    except ValueError:  # "max": no quota
+        return None
+    return q / p if q > 0 and p > 0 else None
+
+
+def available_cpus() -> int:
+    """CPUs this process may use, at least 1: its affinity mask (where the OS has one), capped by the
+    cgroup's CPU quota rounded up."""
+    try:
+        cpus = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
+        cpus = os.cpu_count() or 1
+    limit = cgroup_cpu_limit()
+    if limit is not None:
+        cpus = min(cpus, math.ceil(limit))
+    return max(1, cpus)
 
 
 class Settings(BaseSettings):
@@ -40,8 +70,8 @@ class Settings(BaseSettings):
         None,
         ge=0,
         le=256,
-        description="Processes per worker that run plans; unset: CPUs ÷ workers (at least 1); 0: one "
-        "thread of the worker itself (no process pool).",
+        description="Processes per worker that run plans; unset: CPUs (affinity, cgroup quota) ÷ workers "
+        "(at least 1); 0: one thread of the worker itself (no process pool).",
     )
     time_budget_ms: float = Field(
         1000.0,

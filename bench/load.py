@@ -116,9 +116,10 @@ def own_server(workers: int, plan_processes: int | None, log: Path) -> Iterator[
 
 def probe_health(url: str, interval: float, stop: mp.synchronize.Event, out: Connection) -> None:
     """In a process of its own: GET ``url``/healthz every ``interval`` s on one kept-alive connection
-    (the standard library's, the least work on this side) until ``stop``; send the latencies [ms]."""
+    (the standard library's, the least work on this side) until ``stop``; send (time [s since the
+    epoch], latency [ms]) of each answer and the count of failures."""
     parts = urlsplit(url)
-    latencies: list[float] = []
+    latencies: list[tuple[float, float]] = []
     failures = 0
     host, port = parts.hostname or "127.0.0.1", parts.port or 80
     conn = http.client.HTTPConnection(host, port, timeout=REQUEST_TIMEOUT)
@@ -133,7 +134,7 @@ def probe_health(url: str, interval: float, stop: mp.synchronize.Event, out: Con
             conn.close()
             ok = False
         if ok:
-            latencies.append(1e3 * (time.perf_counter() - t0))
+            latencies.append((time.time(), 1e3 * (time.perf_counter() - t0)))
         else:
             failures += 1
         stop.wait(interval)
@@ -234,19 +235,22 @@ def run(url: str, args: argparse.Namespace, server_pid: int | None = None) -> No
     tree = process_tree(server_pid) if server_pid else {}
     cpu_before = {pid: cpu_seconds(pid) for pid in tree}
     self_before = resource.getrusage(resource.RUSAGE_SELF)
+    started = time.time()
     try:
         tally = asyncio.run(load(url, args.clients, args.duration))
     finally:
         stop.set()
     self_after = resource.getrusage(resource.RUSAGE_SELF)
     cpu_used = {pid: cpu_seconds(pid) - before for pid, before in cpu_before.items()}
-    health, health_failures = receiver.recv()
+    probes, health_failures = receiver.recv()
     prober.join()
+    health = [ms for _, ms in probes]
+    slow = [(t - started, ms) for t, ms in probes if ms >= 50.0]
 
     ok = tally.statuses.get(200, 0)
     wall = max(tally.last - tally.first, 1e-9)
     p50, p95, p99 = percentiles(tally.latencies_ms, (50, 95, 99))
-    h50, hmax = percentiles(health, (50, 100))
+    h50, h95, hmax = percentiles(health, (50, 95, 100))
     m50, m99 = percentiles(tally.planner_ms, (50, 99))
     others = {s: n for s, n in sorted(tally.statuses.items()) if s != 200}
     own = f" (started here, KAPPA_WORKERS={args.workers}" if args.base_url is None else ""
@@ -260,9 +264,12 @@ def run(url: str, args: argparse.Namespace, server_pid: int | None = None) -> No
     print(f"errors            {sum(tally.errors.values())} {dict(tally.errors) or ''}")
     print(f"non-200 answers   {sum(others.values())} {others or ''}")
     print(
-        f"/healthz [ms]     p50 {h50:.1f}  max {hmax:.1f}  ({len(health)} probes, {health_failures} failed; "
-        "target < 50)"
+        f"/healthz [ms]     p50 {h50:.1f}  p95 {h95:.1f}  max {hmax:.1f}  ({len(health)} probes, "
+        f"{health_failures} failed; target < 50)"
     )
+    if slow:
+        when = ", ".join(f"{ms:.0f} ms at {t:.1f} s" for t, ms in slow[:8])
+        print(f"/healthz ≥ 50 ms  {len(slow)}: {when}{' …' if len(slow) > 8 else ''} (s after the start)")
     if cpu_used and ok:
         # uvicorn serves in the process it was started as (1 worker) or in its children (several);
         # plan processes are one level further down

@@ -21,11 +21,12 @@ import pytest
 from fastapi.testclient import TestClient
 from prometheus_client.parser import text_string_to_metric_families
 
+from app import settings as settings_module
 from app.executor import Overloaded, PlanExecutor
 from app.logs import REQUEST_ID, JSONFormatter, uvicorn_log_config
 from app.main import create_app
 from app.routes import candidates as candidates_route
-from app.settings import Settings, available_cpus
+from app.settings import Settings, available_cpus, cgroup_cpu_limit
 
 STAGES = {"total", "reference", "candidates", "lateral", "speed"}
 
@@ -256,6 +257,28 @@ def test_settings_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
         with pytest.raises(ValueError, match=name.removeprefix("KAPPA_").lower()):
             Settings()
         monkeypatch.setenv(name, env[name])
+
+
+def test_the_cpu_count_follows_the_cgroup_quota(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    v2, quota, period = tmp_path / "cpu.max", tmp_path / "quota", tmp_path / "period"
+    monkeypatch.setattr(settings_module, "CGROUP_CPU_MAX", v2)
+    monkeypatch.setattr(settings_module, "CGROUP_V1_QUOTA", quota)
+    monkeypatch.setattr(settings_module, "CGROUP_V1_PERIOD", period)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(64)))
+    assert (cgroup_cpu_limit(), available_cpus()) == (None, 64)  # no cgroup files
+    v2.write_text("150000 100000\n")  # docker run --cpus 1.5
+    assert (cgroup_cpu_limit(), available_cpus()) == (1.5, 2)
+    v2.write_text("max 100000\n")
+    assert (cgroup_cpu_limit(), available_cpus()) == (None, 64)
+    v2.unlink()
+    quota.write_text("50000\n")  # cgroup v1, half a CPU
+    period.write_text("100000\n")
+    assert (cgroup_cpu_limit(), available_cpus()) == (0.5, 1)
+    quota.write_text("-1\n")
+    assert (cgroup_cpu_limit(), available_cpus()) == (None, 64)
+    monkeypatch.setenv("KAPPA_WORKERS", "4")
+    monkeypatch.delenv("KAPPA_PLAN_PROCESSES", raising=False)
+    assert Settings().plan_pool_size() == 16
 
 
 @pytest.fixture
