@@ -368,7 +368,11 @@ def _braking(path: Path, problem: PlanningProblem, steps: int, dt: float) -> Spe
 @dataclass
 class _Solvers:
     lateral: LateralQPSolver = field(default_factory=lambda: LateralQPSolver(refine_steps=0))
-    speed: SpeedSolver = field(default_factory=lambda: SpeedSolver(max_iterations=3, tolerance=1e-3))
+    speed: SpeedSolver = field(
+        default_factory=lambda: SpeedSolver(
+            max_iterations=3, tolerance=1e-3, restore_violation=SPEED_SLACK, qp_residual=1e-6
+        )
+    )
 
 
 _THREAD = threading.local()

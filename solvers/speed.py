@@ -146,6 +146,7 @@ _HPIPM_OPTIONS: dict[str, Any] = {
     "res_d_max": 1e-7,
     "res_m_max": 1e-7,
 }
+_HPIPM_RESIDUALS = ("res_g_max", "res_b_max", "res_d_max", "res_m_max")
 #: HPIPM's return flags: converged; usable if the iterate is finite and within the boxes (converged,
 #: iteration limit, minimum step length)
 _HPIPM_SUCCESS = 0
@@ -600,7 +601,7 @@ def braking_profile(problem: SpeedProblem) -> FloatArray:
 # The QP, built once per (N, dt, weights)
 
 
-def _build_qp(steps: int, dt: float, w: SpeedWeights) -> Any:
+def _build_qp(steps: int, dt: float, w: SpeedWeights, residual: float = 1e-7) -> Any:
     """The CasADi/HPIPM QP in stage order ``z = [x_0, u_0, x_1, u_1, …, x_N]``.
 
     ``x_k = (s_k − s0, v_k, a_k)``, ``u_k = (j_k, σᵛ_{k+1}, σˢ_{k+1})``. Rows of stage ``k < N``: the three
@@ -635,7 +636,7 @@ def _build_qp(steps: int, dt: float, w: SpeedWeights) -> Any:
     options: dict[str, Any] = {
         "error_on_fail": False,
         "inf": _HPIPM_INF,
-        "hpipm": dict(_HPIPM_OPTIONS),
+        "hpipm": {**_HPIPM_OPTIONS, **{k: residual for k in _HPIPM_RESIDUALS}},
         "N": n,
         "nx": [3] * (n + 1),
         "nu": [3] * n + [0],
@@ -845,9 +846,24 @@ class SpeedSolver:
         tolerance: agreement of the linearised limit with the limit, wherever the speed is near it, that
             counts as converged [m/s], > 0.
         max_cached: number of built QPs kept, ≥ 1.
+        restore_violation: a violation [m/s or m] above which the SQP restarts from a full stop (when
+            that meets every constraint); a caller that checks the profile anyway can save the second
+            run by raising it.
     """
 
-    def __init__(self, *, max_iterations: int = 5, tolerance: float = 1e-4, max_cached: int = 4) -> None:
+    def __init__(
+        self,
+        *,
+        max_iterations: int = 5,
+        tolerance: float = 1e-4,
+        max_cached: int = 4,
+        restore_violation: float = _RESTORE_VIOLATION,
+        qp_residual: float = 1e-7,
+    ) -> None:
+        if not 0 < qp_residual < 1:
+            raise ValueError(f"qp_residual: must be in (0, 1), got {qp_residual!r}")
+        if not 0 < restore_violation < math.inf:
+            raise ValueError(f"restore_violation: must be a finite number > 0, got {restore_violation!r}")
         if isinstance(max_iterations, bool) or not isinstance(max_iterations, int) or max_iterations < 1:
             raise ValueError(f"max_iterations: must be an integer ≥ 1, got {max_iterations!r}")
         if isinstance(tolerance, bool) or not isinstance(tolerance, int | float) or not 0 < tolerance < 1e300:
@@ -857,6 +873,8 @@ class SpeedSolver:
         self._max_iterations = max_iterations
         self._tolerance = float(tolerance)
         self._max_cached = max_cached
+        self._restore_violation = float(restore_violation)
+        self._qp_residual = float(qp_residual)
         self._qps: OrderedDict[tuple[int, float, SpeedWeights], Any] = OrderedDict()
         self._build_count = 0
 
@@ -869,7 +887,7 @@ class SpeedSolver:
         key = (problem.steps, problem.dt, problem.weights)
         qp = self._qps.get(key)
         if qp is None:
-            qp = self._qps[key] = _build_qp(*key)
+            qp = self._qps[key] = _build_qp(*key, residual=self._qp_residual)
             self._build_count += 1
             while len(self._qps) > self._max_cached:
                 self._qps.popitem(last=False)
@@ -910,7 +928,7 @@ class SpeedSolver:
         run = self._sqp(problem, qp, bounds, s_bar, v_end, self._max_iterations)
         best, converged, notes = run.best, run.converged, run.notes
         qp_solves, ipm_iterations = run.qp_solves, run.ipm_iterations
-        if best is not None and _max_violation(problem, best) > _RESTORE_VIOLATION:
+        if best is not None and _max_violation(problem, best) > self._restore_violation:
             # a violation although a full stop meets every constraint: a local minimum of the penalty
             # function (a sharp V-shaped dip of v_lim can hold one); try again from the full stop
             stop = braking_profile(problem)
@@ -922,7 +940,7 @@ class SpeedSolver:
                 if retry.best is not None and retry.best.merit < best.merit:
                     best, converged = retry.best, retry.converged
                     notes = [*retry.notes, "restarted from a full stop after a violation it did not need"]
-                if _max_violation(problem, best) > _RESTORE_VIOLATION:
+                if _max_violation(problem, best) > self._restore_violation:
                     converged = False
                     notes.append("a violation remains although a full stop meets every constraint")
 

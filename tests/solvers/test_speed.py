@@ -335,7 +335,7 @@ def test_a_failing_qp_returns_the_braking_profile(monkeypatch: pytest.MonkeyPatc
             return {}
 
     solver = SpeedSolver()
-    monkeypatch.setattr(speed, "_build_qp", lambda *args: Broken())
+    monkeypatch.setattr(speed, "_build_qp", lambda *args, **kwargs: Broken())
     problem = _problem(v0=12.0, s_stop=10.0)
     result = solver.solve(problem)
     _assert_valid(problem, result)
@@ -354,7 +354,7 @@ def test_a_qp_without_a_finite_solution_returns_the_braking_profile(monkeypatch:
         def stats(self) -> dict[str, Any]:
             return {"return_status": 3, "iter_count": 7}
 
-    monkeypatch.setattr(speed, "_build_qp", lambda *args: Diverging())
+    monkeypatch.setattr(speed, "_build_qp", lambda *args, **kwargs: Diverging())
     problem = _problem()
     result = SpeedSolver().solve(problem)
     _assert_valid(problem, result)
@@ -569,3 +569,20 @@ def test_timing_is_reported() -> None:
     elapsed_ms = (time.perf_counter() - start) * 1e3
     assert 0 < result.info.solve_time_ms <= elapsed_ms + 1e-6
     assert result.info.iterations > 0 and result.qp_solves >= 1
+
+
+def test_looser_qp_residuals_and_restore_threshold_keep_a_valid_profile() -> None:
+    """The pipeline's settings (residual 1e-6, no restart below 5 cm/s) still give a profile that meets
+    the dynamics and keeps the limit to within that threshold."""
+    problem = _problem(
+        limit_s=[0.0, 30.0, 32.0, 200.0], limit_v=[10.0, 10.0, 4.0, 4.0], v0=9.0, jerk_max=8.0, a_min=-8.0
+    )
+    fast = SpeedSolver(max_iterations=3, tolerance=1e-3, restore_violation=0.05, qp_residual=1e-6)
+    result = fast.solve(problem)
+    assert result.info.ok
+    _assert_valid(problem, result)
+    assert _limit_excess(problem, result) <= 0.05 + 1e-9
+    with pytest.raises(ValueError, match="qp_residual"):
+        SpeedSolver(qp_residual=0.0)
+    with pytest.raises(ValueError, match="restore_violation"):
+        SpeedSolver(restore_violation=-1.0)
