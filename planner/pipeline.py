@@ -17,6 +17,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import minimum_filter1d
+from scipy.spatial import cKDTree
 from shapely.geometry.base import BaseGeometry
 
 from planner.bounds import LateralBounds, lateral_bounds, pass_left
@@ -273,10 +274,22 @@ def _space_time_bound(
     if not movers:
         return None
     half_s, half_d = vehicle_extent(np.zeros_like(path.s), problem.vehicle, OBSTACLE_MARGIN)
+    # Only obstacles that come near the path at some time can bound the vehicle; mapping the others
+    # by TransF-κ is most of this stage's cost in dense traffic. "Near": within twice the footprints'
+    # reach (generous: a Frenet box may be larger than the shape it bounds).
+    tree = cKDTree(np.column_stack((path.x, path.y)))
+    own = float(np.hypot(half_s[0], half_d[0]))
+    states = [prediction_at(ob, t) for ob in movers]
+    reach = 2.0 * (own + max(float(np.hypot(ob.length, ob.width)) for ob in movers)) + KNOT_SPACING
+    dist, _ = tree.query(np.concatenate(states)[:, :2], distance_upper_bound=reach)  # one query for all
+    near = np.isfinite(dist).reshape(len(movers), -1).any(axis=1)
+    movers = [ob for ob, keep in zip(movers, near, strict=True) if keep]
+    states = [st for st, keep in zip(states, near, strict=True) if keep]
+    if not movers:
+        return None
     # Every obstacle at every time: corners and edge midpoints, mapped by TransF-κ in one call.
     outlines = []
-    for ob in movers:
-        st = prediction_at(ob, t)
+    for ob, st in zip(movers, states, strict=True):
         corners = box_corners(st[:, 0], st[:, 1], st[:, 2], ob.length, ob.width)  # (T, 4, 2)
         outlines.append(np.concatenate((corners, 0.5 * (corners + np.roll(corners, -1, axis=1))), axis=1))
     pts = np.stack(outlines)  # (K, T, 8, 2)
