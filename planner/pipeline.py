@@ -282,9 +282,8 @@ def _space_time_bound(
     states = [prediction_at(ob, t) for ob in movers]
     reach = 2.0 * (own + max(float(np.hypot(ob.length, ob.width)) for ob in movers)) + KNOT_SPACING
     dist, _ = tree.query(np.concatenate(states)[:, :2], distance_upper_bound=reach)  # one query for all
-    near = np.isfinite(dist).reshape(len(movers), -1).any(axis=1)
-    movers = [ob for ob, keep in zip(movers, near, strict=True) if keep]
-    states = [st for st, keep in zip(states, near, strict=True) if keep]
+    near = np.flatnonzero(np.isfinite(dist).reshape(len(movers), -1).any(axis=1))
+    movers, states = [movers[k] for k in near], [states[k] for k in near]
     if not movers:
         return None
     # Every obstacle at every time: corners and edge midpoints, mapped by TransF-κ in one call.
