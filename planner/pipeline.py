@@ -481,13 +481,21 @@ def plan(problem: PlanningProblem) -> PlanResult:
             qp = _lateral_qp(solvers.lateral, bounds, d_ref, start, ref, allowance, timer.remaining_s())
         knot_count = int(bounds.s.shape[0])
 
-    if qp.info.status not in _USABLE:
+    note = ""
+    if qp.info.status in _USABLE:
+        path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
+    elif blocked is not None:
+        # Close to a block the few knots left may leave no room to steer: keep the current offset and
+        # stop before the block (the checks below still decide).
+        hold = np.full(bounds.s.shape, start.d)
+        path = frenet_path(ref, bounds.s, hold, 0.0 * hold, 0.0 * hold)
+        note = f" (no room to steer, lateral QP {qp.info.status}: keeping the current offset)"
+    else:
         return fallback(f"lateral QP failed: {qp.info.status}", candidate_path, qp.info, _NOT_RUN)
     if reason := timer.overrun("lateral"):
-        return fallback(reason, frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd), qp.info, _NOT_RUN)
+        return fallback(reason, path, qp.info, _NOT_RUN)
 
     with timer.stage("speed"):
-        path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
         if blocked is not None:
             s_stop = max(path.length - STOP_GAP, 0.0)
         elif ref.length < path.s[-1]:  # stop at the reference's end (the path runs past it to brake on)
@@ -518,7 +526,7 @@ def plan(problem: PlanningProblem) -> PlanResult:
         return fallback(f"the optimised trajectory breaks a check: {bad[0]}", path, qp.info, speed.info)
     status: Status = "stopped" if blocked is not None else "ok"
     message = (
-        f"the road is blocked {bounds.s[-1] - start.s:.1f} m ahead; stopping before it"
+        f"the road is blocked {bounds.s[-1] - start.s:.1f} m ahead; stopping before it{note}"
         if blocked is not None
         else "planned"
     )

@@ -55,6 +55,20 @@ def test_blocked_road_stops_before_the_block() -> None:
     assert np.all(front < 60.0)
 
 
+@pytest.mark.parametrize("gap", [0.3, 0.8, 1.5, 3.0])
+@pytest.mark.parametrize("d0", [0.0, 0.4])
+def test_standing_right_before_a_block_stays_stopped(gap: float, d0: float) -> None:
+    """A vehicle already halted ``gap`` [m] before a wall (as after a stop in closed loop) stays
+    ``stopped`` where it is, even where the lateral QP has no room left to steer."""
+    wall = PolygonObstacle("wall", _box(60.0, 62.0, -4.0, 4.0))
+    x0 = 60.0 - 0.5 * Vehicle().length - gap
+    ego = Ego(x=x0, y=d0, heading=0.0, speed=0.0)
+    result = _checked(PlanningProblem(ROAD, Lane(3.5, 3.5), ego, (wall,), Vehicle(), OPTIONS))
+    assert result.status == "stopped", result.message
+    assert np.all(result.trajectory.x + 0.5 * Vehicle().length < 60.0)
+    assert np.max(result.trajectory.v) < 1.5
+
+
 def test_parked_car_is_passed_on_the_side_with_room() -> None:
     car = PolygonObstacle("car", _box(50.0, 55.0, -1.5, 0.5))
     result = _checked(PlanningProblem(ROAD, Lane(5.0, 3.5), EGO, (car,), Vehicle(), OPTIONS))
