@@ -11,7 +11,8 @@ For knots ``s_i`` [m] along the reference, the vehicle's centre offset must keep
   ``1 − κ_i·d_i ≥ |κ_i|/κ_max`` (linear in ``d``) keeps ``κ·d < 1`` and the path drivable; where the
   reference is tighter than ``1/κ_max`` it forces the path outwards.
 
-Where ``lower > upper`` the road is blocked: :attr:`LateralBounds.blocked` is the first such knot.
+Where ``lower > upper`` the road is blocked (an obstacle across it, a curve too tight, a lane narrower than
+the vehicle): :attr:`LateralBounds.blocked` is the first such knot.
 """
 
 from __future__ import annotations
@@ -104,9 +105,15 @@ def lateral_bounds(
     straight = lane_bounds(ref, lane, s, half_width=0.5 * vehicle.width, margin=margin)
     turned = lane_bounds(ref, lane, s, half_width=0.0, margin=margin)
     # The footprint turned by the heading error with its corners bulging out of curves; where that
-    # does not fit, without the bulge; where that does not fit either, aligned with the lane (a lane
-    # narrower than the vehicle is not a blocked road: its bounds meet in the middle).
-    lower, upper = straight.lower, straight.upper
+    # does not fit, without the bulge; where that does not fit either, aligned with the lane; where
+    # that does not fit, without the margin. A lane narrower than the vehicle itself cannot be driven:
+    # the road is blocked there (or ends, as where a lane's width falls to zero at its last point).
+    tight = lane_bounds(ref, lane, s, half_width=0.5 * vehicle.width, margin=0.0)
+    narrow = tight.lower > tight.upper - 1e-9
+    lower = np.where(narrow, np.inf, tight.lower)
+    upper = np.where(narrow, -np.inf, tight.upper)
+    fits = straight.lower < straight.upper
+    lower, upper = np.where(fits, straight.lower, lower), np.where(fits, straight.upper, upper)
     for extra_right, extra_left in ((0.0, 0.0), (bulge_right, bulge_left)):
         lo = turned.lower + half_extent + extra_right
         up = turned.upper - half_extent - extra_left

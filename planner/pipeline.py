@@ -465,12 +465,16 @@ def plan(problem: PlanningProblem) -> PlanResult:
             heading_error=_smoothed_slope(d_ref, knots),
         )
         blocked = bounds.blocked
+        # a lane that runs out (narrower than the vehicle) at the reference's end is its end, not a block
+        road_end = blocked is not None and knots[blocked] >= ref.length - 0.5 * vehicle.length - STOP_GAP
         if blocked is not None:
             keep = max(blocked, 3)
+            lower = bounds.lower[:keep]
+            upper = np.maximum(bounds.upper[:keep], lower)
             bounds = LateralBounds(
                 s=knots[:keep],
-                lower=bounds.lower[:keep],
-                upper=np.maximum(bounds.upper[:keep], bounds.lower[:keep]),
+                lower=np.where(np.isfinite(lower), lower, start.d),
+                upper=np.where(np.isfinite(upper), upper, start.d),
                 blocked=blocked,
             )
             d_ref = d_ref[:keep]
@@ -496,10 +500,11 @@ def plan(problem: PlanningProblem) -> PlanResult:
         return fallback(reason, path, qp.info, _NOT_RUN)
 
     with timer.stage("speed"):
+        front = 0.5 * vehicle.length + STOP_GAP
         if blocked is not None:
             s_stop = max(path.length - STOP_GAP, 0.0)
-        elif ref.length < path.s[-1]:  # stop at the reference's end (the path runs past it to brake on)
-            s_stop = float(np.interp(ref.length, path.s, path.sigma))
+        elif ref.length - front < path.s[-1]:  # the front stops STOP_GAP before the reference's end
+            s_stop = max(float(np.interp(ref.length - front, path.s, path.sigma)), 0.0)
         else:  # never past the path's end (it reaches a braking distance beyond the horizon)
             s_stop = path.length
         t_knots = np.arange(steps + 1, dtype=np.float64) * dt_speed
@@ -508,7 +513,7 @@ def plan(problem: PlanningProblem) -> PlanResult:
         s_upper = _space_time_bound(ref, path, moving_obstacles(problem), problem, t_seen, start.s)
         if s_upper is not None:
             s_upper = np.maximum(s_upper - STOP_GAP, 0.0)
-        jerk = EMERGENCY_JERK if blocked is not None else SPEED_JERK
+        jerk = EMERGENCY_JERK if blocked is not None and not road_end else SPEED_JERK
         speed = _speed(solvers.speed, path, problem, s_stop, s_upper, steps, dt_speed, jerk)
         if speed.max_violation > SPEED_SLACK and jerk < EMERGENCY_JERK:
             # The comfortable jerk cannot slow down in time (a curve or an obstacle close ahead):
@@ -524,12 +529,13 @@ def plan(problem: PlanningProblem) -> PlanResult:
         bad = trajectory_violations(ref, problem, traj, shapes)
     if bad:
         return fallback(f"the optimised trajectory breaks a check: {bad[0]}", path, qp.info, speed.info)
-    status: Status = "stopped" if blocked is not None else "ok"
-    message = (
-        f"the road is blocked {bounds.s[-1] - start.s:.1f} m ahead; stopping before it{note}"
-        if blocked is not None
-        else "planned"
-    )
+    status: Status = "stopped" if blocked is not None and not road_end else "ok"
+    if road_end:
+        message = f"planned; the lane ends {bounds.s[-1] - start.s:.1f} m ahead{note}"
+    elif blocked is not None:
+        message = f"the road is blocked {bounds.s[-1] - start.s:.1f} m ahead; stopping before it{note}"
+    else:
+        message = "planned"
     diag = PlanDiagnostics(stats, qp.info, speed.info, _total(timer), ref.size, int(bounds.s.shape[0]), best)
     return PlanResult(status, message, traj, cands if options.return_candidates else None, diag)
 

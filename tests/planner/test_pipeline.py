@@ -69,6 +69,34 @@ def test_standing_right_before_a_block_stays_stopped(gap: float, d0: float) -> N
     assert np.max(result.trajectory.v) < 1.5
 
 
+def test_a_lane_narrower_than_the_vehicle_blocks_the_road() -> None:
+    road = straight(200.0, step=5.0)
+    x = road[:, 0]
+    width = np.where((x >= 80.0) & (x <= 100.0), 0.8, 3.5)  # 1.6 m in all: narrower than 1.8 m
+    problem = PlanningProblem(road, Lane(width, width), EGO, (), Vehicle(), OPTIONS)
+    result = _checked(problem)
+    assert result.status == "stopped", result.message
+    assert np.all(result.trajectory.x + 0.5 * Vehicle().length < 80.0)
+
+
+@pytest.mark.parametrize("x0", [100.0, 115.0])
+@pytest.mark.parametrize("both", [False, True])
+def test_a_lane_whose_width_falls_to_zero_at_its_last_point_just_ends(x0: float, both: bool) -> None:
+    """A zero width at the last point (one side, as in converted CommonRoad data, or both) within the
+    path's reach is the lane's end, not an infeasible lateral problem: the plan stays ``ok``."""
+    road = np.vstack((straight(200.0, step=5.0), [[201.0, 0.0]]))  # the last segment 1 m long
+    left = np.full(road.shape[0], 1.7)
+    right = left.copy()
+    right[-1] = 0.0
+    if both:
+        left[-1] = 0.0
+    ego = Ego(x=x0, y=0.0, heading=0.0, speed=8.0)
+    result = _checked(PlanningProblem(road, Lane(left, right), ego, (), Vehicle(), OPTIONS))
+    assert result.status == "ok", result.message
+    assert "the lane ends" in result.message  # 1.7 m in all at the last point: narrower than the car
+    assert result.trajectory.x[-1] <= 200.0 + 1e-6
+
+
 def test_parked_car_is_passed_on_the_side_with_room() -> None:
     car = PolygonObstacle("car", _box(50.0, 55.0, -1.5, 0.5))
     result = _checked(PlanningProblem(ROAD, Lane(5.0, 3.5), EGO, (car,), Vehicle(), OPTIONS))
