@@ -22,7 +22,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from planner.pipeline import plan
+from planner.pipeline import _Solvers, plan
 from planner.problem import (
     CircleObstacle,
     DynamicObstacle,
@@ -35,7 +35,7 @@ from planner.problem import (
 )
 from planner.roads import demo_problem, straight
 from solvers.lateral_qp import LateralQPProblem, LateralQPSolver
-from solvers.speed import SpeedProblem, SpeedSolver
+from solvers.speed import SpeedProblem
 
 
 def timings(fn: Callable[[], object], repeats: int) -> np.ndarray:
@@ -68,7 +68,7 @@ def bench_lateral() -> None:
 
 
 def bench_speed() -> None:
-    solver = SpeedSolver()
+    solver = _Solvers().speed  # configured as the pipeline configures it
     limit_s = np.linspace(0.0, 150.0, 301)
     limit_v = np.where((limit_s > 40) & (limit_s < 60), 6.0, 15.0)
     t = np.arange(81) * 0.1

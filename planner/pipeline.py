@@ -382,7 +382,7 @@ class _Solvers:
     lateral: LateralQPSolver = field(default_factory=lambda: LateralQPSolver(refine_steps=0))
     speed: SpeedSolver = field(
         default_factory=lambda: SpeedSolver(
-            max_iterations=3, tolerance=1e-3, restore_violation=SPEED_SLACK, qp_residual=1e-6
+            max_iterations=2, tolerance=1e-3, restore_violation=SPEED_SLACK, qp_residual=1e-6
         )
     )
 
