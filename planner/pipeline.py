@@ -72,6 +72,8 @@ LATERAL_JERK = 0.5
 SPEED_JERK = 8.0
 #: a speed profile needing more slack than this [m/s or m] is re-planned with the emergency jerk
 SPEED_SLACK = 0.05
+#: a speed profile past a stop or a space-time bound by more than this [m] is replaced by full braking
+POSITION_SLACK = 0.01
 #: share of the lateral-acceleration limit the speed profile plans with (its linearisation's tolerance)
 LIMIT_MARGIN = 0.9
 #: the speed limit at a point also holds this far either side of it [m]
@@ -501,8 +503,9 @@ def plan(problem: PlanningProblem) -> PlanResult:
 
     with timer.stage("speed"):
         front = 0.5 * vehicle.length + STOP_GAP
-        if blocked is not None:
-            s_stop = max(path.length - STOP_GAP, 0.0)
+        if blocked is not None:  # STOP_GAP before the last free knot (the path may run on: ≥ 3 knots)
+            last_free = knots[max(blocked - 1, 0)] - STOP_GAP
+            s_stop = max(float(np.interp(last_free, path.s, path.sigma, left=0.0)), 0.0)
         elif ref.length - front < path.s[-1]:  # the front stops STOP_GAP before the reference's end
             s_stop = max(float(np.interp(ref.length - front, path.s, path.sigma)), 0.0)
         else:  # never past the path's end (it reaches a braking distance beyond the horizon)
@@ -519,6 +522,10 @@ def plan(problem: PlanningProblem) -> PlanResult:
             # The comfortable jerk cannot slow down in time (a curve or an obstacle close ahead):
             # safety before comfort, brake as hard as the emergency jerk allows.
             speed = _speed(solvers.speed, path, problem, s_stop, s_upper, steps, dt_speed, EMERGENCY_JERK)
+        if speed.info.ok and speed.position_violation > POSITION_SLACK:
+            # Past a stop or a space-time bound (the solver's limits are soft): full braking keeps every
+            # s(t) as small as the limits allow, so it is the answer here (no creeping up to a block).
+            speed = _braking(path, problem, steps, dt_speed)
     if not speed.info.ok:
         return fallback(f"speed profile failed: {speed.info.status}", path, qp.info, speed.info)
     if reason := timer.overrun("speed"):

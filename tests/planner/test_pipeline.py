@@ -69,6 +69,28 @@ def test_standing_right_before_a_block_stays_stopped(gap: float, d0: float) -> N
     assert np.max(result.trajectory.v) < 1.5
 
 
+def test_replanning_while_stopped_before_a_block_does_not_creep_up_to_it() -> None:
+    """Re-planned every 0.1 s from the plan's own state (a perfect tracker), a vehicle halted before a
+    wall stays put: the stop is measured from the block, not from wherever the vehicle now is."""
+    wall = PolygonObstacle("wall", _box(60.0, 62.0, -4.0, 4.0))
+    ego = Ego(x=60.0 - 0.5 * Vehicle().length - 0.8, y=0.0, heading=0.0, speed=0.05)
+    start = ego.x
+    fast = Options(target_speed=30.0)  # a long path: knots further apart than 0.5 m
+    for _ in range(40):
+        result = _checked(PlanningProblem(ROAD, Lane(3.5, 3.5), ego, (wall,), Vehicle(), fast))
+        assert result.status == "stopped", result.message
+        t = result.trajectory
+        ego = Ego(
+            x=float(t.x[1]),
+            y=float(t.y[1]),
+            heading=float(t.heading[1]),
+            speed=float(t.v[1]),
+            acceleration=float(t.a[1]),
+        )
+    assert ego.x - start < 0.1
+    assert ego.x + 0.5 * Vehicle().length < 60.0
+
+
 def test_a_lane_narrower_than_the_vehicle_blocks_the_road() -> None:
     road = straight(200.0, step=5.0)
     x = road[:, 0]
