@@ -29,6 +29,8 @@ from planner.reference import FloatArray, ReferenceLine
 STATIC_MOTION = 0.5
 #: outline points of obstacles are at most this far apart before projection [m]
 OUTLINE_STEP = 0.25
+#: outlines longer than this [m] are cut to the corridor around the reference before mapping
+CLIP_LENGTH = 200.0
 
 
 def box_corners(x: FloatArray, y: FloatArray, heading: FloatArray, length: float, width: float) -> FloatArray:
@@ -96,12 +98,33 @@ class FrenetBoxes:
         return len(self.ids)
 
 
-def frenet_boxes(ref: ReferenceLine, shapes: list[tuple[str, BaseGeometry]]) -> FrenetBoxes:
-    """Map every outline (densified to :data:`OUTLINE_STEP`) with TransF-κ in one call; box each."""
+def frenet_boxes(
+    ref: ReferenceLine, shapes: list[tuple[str, BaseGeometry]], *, reach: float | None = None
+) -> FrenetBoxes:
+    """Map every outline (densified to :data:`OUTLINE_STEP`) with TransF-κ in one call; box each.
+
+    With ``reach`` [m], only what lies within ``reach`` of the reference line counts: an obstacle
+    farther away is left out, and a long outline (over :data:`CLIP_LENGTH`) is cut to that corridor
+    first — the vehicle cannot get there, and mapping kilometres of outline would cost seconds.
+    """
+    if reach is not None and shapes:
+        line = shapely.LineString(ref.points)
+        geoms = np.array([shape for _, shape in shapes], dtype=object)
+        near = shapely.dwithin(geoms, line, reach)
+        long = shapely.length(geoms) > CLIP_LENGTH
+        corridor = line.buffer(reach) if np.any(near & long) else None
+        kept: list[tuple[str, BaseGeometry]] = []
+        for (ob_id, shape), is_near, is_long in zip(shapes, near, long, strict=True):
+            if not is_near:
+                continue
+            piece = shape.intersection(corridor) if is_long and corridor is not None else shape
+            if not piece.is_empty:
+                kept.append((ob_id, piece))
+        shapes = kept
     if not shapes:
         empty = np.zeros(0)
         return FrenetBoxes((), empty, empty, empty, empty)
-    outlines = [shapely.segmentize(shape.exterior, OUTLINE_STEP) for _, shape in shapes]
+    outlines = [shapely.segmentize(shapely.boundary(shape), OUTLINE_STEP) for _, shape in shapes]
     coords = [np.asarray(shapely.get_coordinates(o)) for o in outlines]
     sizes = np.array([c.shape[0] for c in coords])
     starts = np.concatenate(([0], np.cumsum(sizes)[:-1]))

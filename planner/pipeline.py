@@ -159,6 +159,13 @@ def static_shapes(problem: PlanningProblem) -> list[tuple[str, BaseGeometry]]:
     return [(ob.id, obstacle_shape(ob)) for ob in problem.obstacles if is_static(ob, horizon)]
 
 
+def _corridor(problem: PlanningProblem) -> float:
+    """How far from the reference line [m] an obstacle can matter: the widest lane side and the
+    vehicle's length, with a metre to spare."""
+    widest = max(float(np.max(problem.lane.left_width)), float(np.max(problem.lane.right_width)))
+    return widest + problem.vehicle.length + 1.0
+
+
 def moving_obstacles(problem: PlanningProblem) -> list[DynamicObstacle]:
     horizon = problem.options.horizon_time
     return [ob for ob in problem.obstacles if isinstance(ob, DynamicObstacle) and not is_static(ob, horizon)]
@@ -416,7 +423,7 @@ def plan(problem: PlanningProblem) -> PlanResult:
     with timer.stage("candidates"):
         cands = generate_candidates(ref, problem.lane, problem.ego, vehicle, options, start=start)
         shapes = static_shapes(problem)
-        boxes = frenet_boxes(ref, shapes)
+        boxes = frenet_boxes(ref, shapes, reach=_corridor(problem))
         best, free = choose_candidate(cands, boxes, problem)
         s_c, d_c, _ = cands.points(best)
     candidate_path = polyline_path(ref, s_c, d_c)

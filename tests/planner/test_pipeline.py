@@ -9,6 +9,7 @@ import pytest
 
 from planner.pipeline import plan, static_shapes
 from planner.problem import (
+    CircleObstacle,
     DynamicObstacle,
     Ego,
     Lane,
@@ -235,3 +236,31 @@ def test_same_request_same_answer() -> None:
     assert first.status == second.status
     np.testing.assert_allclose(first.trajectory.x, second.trajectory.x, atol=1e-6)
     np.testing.assert_allclose(first.trajectory.v, second.trajectory.v, atol=1e-6)
+
+
+def test_huge_and_far_obstacles_cost_only_what_lies_near_the_road(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A 20 km square around the road's far end and hundreds of far-off outlines: only the outline near
+    the reference is mapped by TransF-κ, and the plan is the one without them where they are out of
+    reach."""
+    import planner.collision as collision
+
+    mapped: list[int] = []
+    original = collision.to_frenet
+
+    def counting(ref, pts):  # type: ignore[no-untyped-def]
+        mapped.append(len(pts))
+        return original(ref, pts)
+
+    monkeypatch.setattr(collision, "to_frenet", counting)
+    # 200 × 126 m of outline, 5 km away
+    far = tuple(CircleObstacle(f"far{i}", np.array([1000.0 + 50.0 * i, 5000.0]), 20.0) for i in range(200))
+    base = PlanningProblem(ROAD, Lane(3.5, 3.5), EGO, (), Vehicle(), OPTIONS)
+    with_far = replace(base, obstacles=far)
+    assert _checked(with_far).status == "ok"
+    assert sum(mapped) == 0
+    # a field wall 20 km long crossing the road at x = 80 m: cut to the corridor, the road is blocked
+    wall = PolygonObstacle("field", _box(80.0, 82.0, -10_000.0, 10_000.0))
+    mapped.clear()
+    result = _checked(replace(base, obstacles=(wall,)))
+    assert result.status == "stopped"
+    assert 0 < sum(mapped) < 500  # 2 × 2 m + 2 × (2 · 10 m corridor) of outline at 0.25 m steps
