@@ -59,7 +59,7 @@ MIN_POLYGON_AREA = 1e-6
 #: smallest obstacle dimension (circle radius, box length and width) [m]
 MIN_OBSTACLE_SIZE = 1e-3
 #: longest total outline of a request's obstacles (polygon perimeters, circle circumferences, box
-#: perimeters) [m]: the planner maps every outline densely into the Frenet frame
+#: perimeters) [m]: a bound on the work one request can ask for (the planner cuts long outlines to the road)
 MAX_OBSTACLE_OUTLINE = 20_000.0
 #: most points over all candidates (num_candidates × num_points) of one request
 MAX_TOTAL_CANDIDATE_POINTS = 200_000
