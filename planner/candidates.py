@@ -41,6 +41,8 @@ from planner.reference import FloatArray, ReferenceLine, widths_at
 _LIMIT_SAFETY = 0.97
 #: an empty disc smaller than this fraction of 1/κ is bounded by another stretch of the reference
 _BRANCH_RATIO = 0.9
+#: samples nearer than this many spacings along the reference are the column's own stretch of curve
+_OWN_STRETCH = 1.5
 #: time before full deceleration is reached when braking from cruise (jerk-limited ramp) [s]
 BRAKE_DELAY = 1.5
 #: farthest the ego may be outside the lane, or before the reference's start [m]
@@ -326,6 +328,10 @@ def _consistent_offsets(
     w = ref.points[j] - origin[owner]
     across = np.einsum("ij,ij->i", w, normal[owner])
     sq = np.einsum("ij,ij->i", w, w)
+    # The samples of the column's own stretch of curve (within 1.5 spacings along it) are left out:
+    # their limit is 1/κ and the wedge apexes (below), and where the Frenet line is not exactly
+    # normal to the curve a sample a millimetre away gave a spurious ρ ≈ 0.
+    own_stretch = np.abs(ref.s[j] - s_row[owner]) < _OWN_STRETCH * ref.spacing
     kappa = ref.kappa_at(s_row)
     apex = _wedge_apex(ref, s_row)
     out = {}
@@ -333,7 +339,7 @@ def _consistent_offsets(
         a = sign * across
         with np.errstate(divide="ignore", invalid="ignore"):
             rho_j = np.where(a > 0, sq / (2.0 * a), np.inf)
-        rho = _per_column(rho_j, owner, s_row.shape[0], sq) / stretch
+        rho = _per_column(rho_j, owner, s_row.shape[0], own_stretch) / stretch
         with np.errstate(divide="ignore"):
             curl = np.where(sign * kappa > 0, 1.0 / np.abs(kappa), np.inf)  # centre of curvature
         ok = sign * np.minimum(_LIMIT_SAFETY * np.minimum(np.minimum(rho, curl), apex[side]), sign * bound)
@@ -364,10 +370,12 @@ def _wedge_apex(ref: ReferenceLine, s_row: FloatArray, *, around: int = 8) -> di
     return {"upper": left[window].min(axis=1), "lower": right[window].min(axis=1)}
 
 
-def _per_column(values: FloatArray, owner: NDArray[np.intp], columns: int, sq: FloatArray) -> FloatArray:
-    """Smallest of ``values`` per column (``inf`` where a column has none); the point itself is skipped."""
+def _per_column(
+    values: FloatArray, owner: NDArray[np.intp], columns: int, skip: NDArray[np.bool_]
+) -> FloatArray:
+    """Smallest of ``values`` per column (``inf`` where a column has none), ``skip`` left out."""
     out = np.full(columns, np.inf)
-    np.minimum.at(out, owner, np.where(sq > 1e-18, values, np.inf))
+    np.minimum.at(out, owner, np.where(skip, np.inf, values))
     return out
 
 

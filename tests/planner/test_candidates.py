@@ -11,12 +11,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.candidates import CandidateSet, ego_frenet, generate_candidates, lane_bounds
+from planner.candidates import CandidateSet, _consistent_offsets, ego_frenet, generate_candidates, lane_bounds
 from planner.errors import InvalidInputError
 from planner.frenet import to_frenet
 from planner.problem import Ego, Lane, Options, Vehicle
 from planner.reference import ReferenceLine, build_reference
-from planner.roads import demo_problem, straight, u_turn
+from planner.roads import arc, demo_problem, straight, u_turn
 from planner.validation import backward_steps, self_intersects
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "data" / "commonroad"
@@ -190,3 +190,29 @@ def test_reference_running_back_on_itself_is_rejected_at_its_point() -> None:
     with pytest.raises(InvalidReferenceError) as err:
         build_reference([[0.0, 0.0], [10.0, 0.0], [5.0, 0.0]])
     assert err.value.field == "reference_line.1"
+
+
+@settings(max_examples=20, deadline=None)
+@given(radius=st.floats(8.0, 40.0), turn=st.floats(0.3, 2.0), eps=st.floats(1e-7, 1e-2))
+def test_own_offset_bounds_are_the_lane_where_nothing_else_is_near(
+    radius: float, turn: float, eps: float
+) -> None:
+    """A corner between two straights, lane well inside the curve's radius: no other stretch of the
+    reference is near, so the candidates' own bounds are the lane bounds at every column, also a hair
+    away from a reference sample.
+
+    Regression: where the Frenet line is not exactly normal to the curve (around the curve's ends), a
+    sample ``eps`` away along the curve gave a largest empty disc of radius ≈ 0, so one column of every
+    candidate was pulled onto the reference (a 7 m spike in the demo U-turn's candidates).
+    """
+    corner = arc(radius, turn, step=0.5)
+    heading = turn
+    out = corner[-1] + straight(30.0, heading=heading, step=0.5)[1:]
+    ref = build_reference(np.vstack((straight(30.0)[:-1] - [30.0, 0.0], corner, out)))
+    lane = Lane(left_width=0.3 * radius, right_width=0.3 * radius)
+    inner = ref.s[2:-2]
+    s_row = np.concatenate([inner - eps, inner + eps])
+    bounds = lane_bounds(ref, lane, s_row, half_width=0.9, margin=0.2)
+    limits = _consistent_offsets(ref, s_row, bounds, separation=0.9)
+    np.testing.assert_array_equal(limits.upper_own, bounds.upper)
+    np.testing.assert_array_equal(limits.lower_own, bounds.lower)
