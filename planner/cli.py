@@ -395,9 +395,7 @@ def _load(path: Path) -> PlanningProblem:
 
 def _run(problem: PlanningProblem, generator: Generator, args: argparse.Namespace) -> SimResult:
     problem = replace(problem, options=replace(problem.options, generator=generator))
-    model = BicycleModel.for_vehicle(
-        problem.vehicle, **({"rear_to_centre": 0.0} if args.rear_axle_centre else {})
-    )
+    model = BicycleModel.for_vehicle(problem.vehicle, centre_midway=args.centre_midway)
     goal = None if args.goal_s is None else Goal(s_min=args.goal_s)
     disable = args.quiet or not sys.stderr.isatty()
     with tqdm(total=1, desc=generator, unit="cycle", disable=disable) as bar:
@@ -481,10 +479,11 @@ def _parser() -> argparse.ArgumentParser:
     common.add_argument("--gif-stride", type=int, default=2, help="a GIF frame every N cycles")
     common.add_argument("--gif-dpi", type=int, default=100, help="GIF resolution [px/inch]")
     common.add_argument(
-        "--rear-axle-centre",
+        "--centre-midway",
         action="store_true",
-        help="put the vehicle's centre on its rear axle, so the footprint turns with the path as the "
-        "planner assumes (default: midway between the axles, yawed by the slip angle in turns)",
+        help="a car referenced midway between its axles: its body yaws against the path by the slip "
+        "angle, which the planner's footprint does not model (default: no slip at the centre, the "
+        "vehicle the planner's contract describes)",
     )
     common.add_argument("--quiet", action="store_true", help="no progress bar")
 

@@ -918,7 +918,11 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("--no-gif", action="store_true", help="skip the animation")
     p.add_argument("--gif-stride", type=int, default=2, help="a GIF frame every N cycles")
     p.add_argument("--gif-dpi", type=int, default=100, help="GIF resolution [px/inch]")
-    p.add_argument("--rear-axle-centre", action="store_true", help="the vehicle's centre on its rear axle")
+    p.add_argument(
+        "--centre-midway",
+        action="store_true",
+        help="a car referenced midway between its axles (its body yaws by the slip angle in turns)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run_command)
     return p

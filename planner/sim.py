@@ -1,19 +1,26 @@
 """Closed-loop simulation: replan every ``replan_period`` from the vehicle's state, drive the plan's
 first stretch with a kinematic bicycle model and a simple tracker, record everything, score the run.
 
-Vehicle model — kinematic bicycle referenced at the geometric centre ``(x, y)``, which sits midway
-between the axles (wheelbase ``ℓ``, ``ℓ_r = ℓ/2`` from the rear axle), with body yaw ``ψ`` [rad],
-speed ``v`` [m/s] of the centre and front-wheel steering angle ``δ`` [rad]::
+Vehicle model — kinematic bicycle referenced at the footprint's centre ``(x, y)``, with wheelbase ``ℓ``,
+the rear axle ``ℓ_r`` behind the centre, body yaw ``ψ`` [rad], speed ``v`` [m/s] of the centre and
+front-wheel steering angle ``δ`` [rad]::
 
     β = atan(ℓ_r/ℓ · tan δ)            slip angle of the centre
-    ẋ = v cos(ψ + β),  ẏ = v sin(ψ + β),  ψ̇ = v sin β / ℓ_r,  v̇ = a  (v ≥ 0)
+    ẋ = v cos(ψ + β),  ẏ = v sin(ψ + β),  ψ̇ = v tan δ cos β / ℓ,  v̇ = a  (v ≥ 0)
 
-At constant ``δ`` the centre runs on a circle of curvature ``κ = sin β / ℓ_r`` [1/m] — the path
+At constant ``δ`` the centre runs on a circle of curvature ``κ = tan δ cos β / ℓ`` [1/m] — the path
 curvature the planner speaks of — and its direction of travel, the *course* ``χ = ψ + β``, is what the
 planner calls the heading (a trajectory point's heading is its path's tangent). The footprint,
-``length × width`` centred at ``(x, y)``, is turned by the body yaw ``ψ``, so in a turn it is yawed by
-``β`` against the path (≈ 11° at κ = 0.14 1/m for a 4.5 m car): the simulator scores collisions with
-that real footprint, not with the planner's approximation.
+``length × width`` centred at ``(x, y)``, is turned by the body yaw ``ψ``; the simulator scores
+collisions with that footprint.
+
+By default ``ℓ_r = 0``: the vehicle the planner's contract describes, whose footprint is centred on the
+trajectory point and turned with the path (β = 0; a differential-drive robot, or a car planned by the
+point that does not slip). With ``ℓ_r = ℓ/2`` (:meth:`BicycleModel.for_vehicle` with
+``centre_midway=True``, ``--centre-midway`` on the command line) it is a car referenced midway between
+its axles: in a turn its body is yawed by ``β`` against the path (≈ 11° at κ = 0.14 1/m for a 4.5 m
+car), which the planner's footprint does not model — its outer front corner swings out by about
+``(length/2)·sin β``.
 
 Inputs are held for a sub-step of ``h = replan_period / substeps`` (zero-order hold, 100 Hz by
 default): the steering moves towards its command at most ``max_steering_rate·h``, then the motion
@@ -83,7 +90,7 @@ PROJECTION_WINDOW = 5.0
 
 @dataclass(frozen=True)
 class BicycleModel:
-    """Kinematic bicycle referenced at the centre (see the module docstring).
+    """Kinematic bicycle referenced at the footprint's centre (see the module docstring).
 
     Attributes:
         wheelbase: ``ℓ`` [m].
@@ -101,13 +108,12 @@ class BicycleModel:
     substeps: int = 10
 
     @classmethod
-    def for_vehicle(cls, vehicle: Vehicle, **overrides: Any) -> BicycleModel:
-        """Wheelbase ``0.6·length``, centre midway between the axles, steering limited to the
-        vehicle's ``max_curvature``."""
+    def for_vehicle(cls, vehicle: Vehicle, *, centre_midway: bool = False, **overrides: Any) -> BicycleModel:
+        """Wheelbase ``0.6·length``, steering limited to the vehicle's ``max_curvature``; the rear axle at
+        the centre (no slip: the planner's vehicle), or midway between the axles with ``centre_midway``."""
         wheelbase = 0.6 * vehicle.length
-        base = replace(
-            cls(wheelbase=wheelbase, rear_to_centre=0.5 * wheelbase, max_steering=np.pi / 3), **overrides
-        )
+        rear = 0.5 * wheelbase if centre_midway else 0.0
+        base = replace(cls(wheelbase=wheelbase, rear_to_centre=rear, max_steering=np.pi / 3), **overrides)
         limit = vehicle.max_curvature
         if base.rear_to_centre > 0.0:
             limit = min(limit, 0.999 / base.rear_to_centre)

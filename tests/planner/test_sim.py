@@ -231,10 +231,13 @@ def _short_demo(generator: str = "transf_kappa") -> PlanningProblem:
     )
 
 
-def test_transf_kappa_drives_the_u_turn_with_the_planners_footprint() -> None:
-    """With the centre on the rear axle the body turns with the path, as the planner assumes."""
+def test_transf_kappa_drives_the_u_turn() -> None:
+    """The default vehicle does not slip at its centre: its body turns with the path, as the planner's
+    footprint assumes."""
     problem = _short_demo()
-    result = simulate(problem, model=BicycleModel.for_vehicle(problem.vehicle, rear_to_centre=0.0))
+    result = simulate(problem)
+    assert result.model == BicycleModel.for_vehicle(problem.vehicle)
+    assert result.model.rear_to_centre == 0.0
     m = result.metrics
     assert m.termination == "goal" and m.goal_reached
     assert m.collisions == 0 and m.min_clearance is not None and m.min_clearance > 0.0
@@ -253,11 +256,12 @@ def test_transf_kappa_drives_the_u_turn_with_the_planners_footprint() -> None:
 
 @pytest.mark.xfail(
     strict=True,
-    reason="the planner checks a footprint turned with the path; a car's body is yawed by the slip "
-    "angle at its centre (≈ 10° here), which swings its outer front corner ~0.4 m into the cone",
+    reason="the planner checks a footprint turned with the path; a car referenced midway between its "
+    "axles is yawed by the slip angle (≈ 10° here), which swings its outer front corner ~0.4 m into the cone",
 )
-def test_transf_kappa_drives_the_u_turn() -> None:
-    result = simulate(_short_demo())
+def test_a_car_referenced_midway_between_its_axles_drives_the_u_turn() -> None:
+    problem = _short_demo()
+    result = simulate(problem, model=BicycleModel.for_vehicle(problem.vehicle, centre_midway=True))
     assert result.metrics.termination == "goal"
     assert result.metrics.collisions == 0
 
