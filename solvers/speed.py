@@ -99,6 +99,10 @@ the solve fails: status ``failed`` and the braking profile. The returned profile
 jerks with the formulas above, so it meets the dynamics to rounding error whatever the QP's accuracy.
 
 Internally ``s`` is measured from ``s0``, so the QP's numbers stay small wherever the path frame starts.
+What does not depend on the profile — the limit's segments and the model's pieces per segment, the
+candidates of ``v_end``'s minimum as suffix minima sorted by ``s′``, the boxes — is computed once per
+problem (on first use, kept on it), so each evaluation during the SQP is a lookup; and the QP reads and
+writes numpy arrays directly (CasADi's function buffer), with no conversion per call.
 """
 
 from __future__ import annotations
@@ -108,6 +112,7 @@ import threading
 import time
 from collections import OrderedDict
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import casadi as ca
@@ -337,6 +342,11 @@ class SpeedProblem:
         """Knot times ``t_k = k·Δt`` [s], shape (N + 1,)."""
         return np.arange(self.steps + 1, dtype=np.float64) * self.dt
 
+    @cached_property
+    def _tables(self) -> _Tables:
+        """What the solver looks up again and again, computed on first use (the problem is immutable)."""
+        return _Tables.of(self)
+
     def s_bound(self) -> FloatArray:
         """``min(s_stop, s_upper[k])`` per knot [m] (``+inf`` where free), shape (N + 1,)."""
         bound = np.full(self.steps + 1, self.s_stop)
@@ -364,6 +374,123 @@ class SpeedProblem:
         _, v, a = integrate_jerk(dt, 0.0, self.v0, self.a0, jerk)
         half = v[:-1] + a[:-1] * dt / 2 + jerk * dt**2 / 8
         return np.minimum(v, 0.0), np.minimum(half, 0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class _Tables:
+    """A problem's numbers that do not depend on the profile, computed once (read-only arrays).
+
+    Attributes:
+        slopes: ``slopes[i]`` is the slope of ``v_lim`` [1/s] where ``searchsorted(limit_s, s, "right")``
+            is ``i``: 0 before and beyond the ends, else that of the segment holding ``s``; shape (M + 1,).
+        rel_s: ``limit_s − s0`` [m] (the QP's frame).
+        piece_e, piece_d: the pieces of :func:`_local_model` for ``s`` (relative to s0) with
+            ``searchsorted(rel_s, s, "right")`` equal to the column: ``v ≤ e + d·s`` of the segment holding
+            ``s`` (row 0), of the one behind and of the one ahead where the kink between is concave (rows 1
+            and 2; ``e = +inf``, ``d = 0`` where not); shape ``(_PIECES, M + 1)``.
+        b, c, rate, bound: as in :class:`_EndTerms` (``rate`` and ``bound`` ``None`` without a moving bound).
+        end_s: the points ``s′ < s_stop`` where the minimum of ``v_end`` can lie other than ``s′ = s``
+            (breakpoints, ``s_stop`` when finite, stationary points on falling segments), sorted [m].
+        end_min: ``end_min[i]`` is the least energy ``(v*(s′) + c)² + 2b s′`` over ``end_s[i:]``, ``+inf`` at
+            the end [m²/s²]; so the minimum over ``s′ > s`` is ``end_min[searchsorted(end_s, s, "right")]``.
+        s_bound: :meth:`SpeedProblem.s_bound`; ``bound_finite``: where it is finite; ``bound_or_zero``: it,
+            0 where infinite.
+        a_lo, a_hi: :meth:`SpeedProblem.accel_bounds`; v_lo, v_lo_half: :meth:`SpeedProblem.speed_floor`.
+    """
+
+    slopes: FloatArray
+    rel_s: FloatArray
+    piece_e: FloatArray
+    piece_d: FloatArray
+    b: float
+    c: float
+    rate: float | None
+    bound: float | None
+    end_s: FloatArray
+    end_min: FloatArray
+    s_bound: FloatArray
+    bound_finite: NDArray[np.bool_]
+    bound_or_zero: FloatArray
+    a_lo: FloatArray
+    a_hi: FloatArray
+    v_lo: FloatArray
+    v_lo_half: FloatArray
+
+    @staticmethod
+    def of(problem: SpeedProblem) -> _Tables:
+        xs, ys = problem.limit_s, problem.limit_v
+        rel_s = xs - problem.s0
+        edge = np.zeros(1)
+        slopes = np.concatenate([edge, np.diff(ys) / np.diff(xs), edge])
+        # segments −1 (before xs[0]) … M−1 (after xs[−1]) in columns 0 … M: lines v = e + d·s through their
+        # left end (the first point for segment −1)
+        piece_d = np.zeros((_PIECES, xs.size + 1))
+        piece_e = np.full((_PIECES, xs.size + 1), np.inf)
+        line_d = np.concatenate([edge, np.diff(ys) / np.diff(rel_s), edge])
+        anchor = np.clip(np.arange(-1, xs.size), 0, xs.size - 1)
+        line_e = ys[anchor] - line_d * rel_s[anchor]
+        concave = line_d[1:] < line_d[:-1]  # the kink at each breakpoint
+        piece_e[0], piece_d[0] = line_e, line_d
+        piece_e[1, 1:] = np.where(concave, line_e[:-1], np.inf)
+        piece_d[1, 1:] = np.where(concave, line_d[:-1], 0.0)
+        piece_e[2, :-1] = np.where(concave, line_e[1:], np.inf)
+        piece_d[2, :-1] = np.where(concave, line_d[1:], 0.0)
+
+        b = -0.5 * problem.a_min
+        c = b * b / (2.0 * problem.jerk_max)
+        stop = problem.s_stop
+        rate = bound = None
+        if problem.s_upper is not None and math.isfinite(problem.s_upper[-1]):
+            bound, before = float(problem.s_upper[-1]), float(problem.s_upper[-2])
+            rate = max((bound - before) / problem.dt, 0.0) if math.isfinite(before) else 0.0
+        ahead = xs < stop
+        cand_s = [xs[ahead]]
+        cand_v = [ys[ahead]]
+        if math.isfinite(stop):
+            cand_s.append(np.array([stop]))
+            cand_v.append(np.array([0.0]))
+        if xs.size >= 2:
+            # stationary points of (v(s′) + c)² + 2b s′ on falling segments: v(s′) + c = −b/m
+            m = slopes[1:-1]
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                x_star = xs[:-1] + (-b / m - c - ys[:-1]) / m
+            inside = (m < 0) & (x_star > xs[:-1]) & (x_star < np.minimum(xs[1:], stop))
+            cand_s.append(x_star[inside])
+            cand_v.append(ys[:-1][inside] + m[inside] * (x_star[inside] - xs[:-1][inside]))
+        end_s = np.concatenate(cand_s)
+        energy = (np.maximum(np.concatenate(cand_v), 0.0) + c) ** 2 + 2.0 * b * end_s
+        order = np.argsort(end_s, kind="stable")
+        end_s = end_s[order]
+        end_min = np.append(np.minimum.accumulate(energy[order][::-1])[::-1], math.inf)
+
+        s_bound = problem.s_bound()
+        bound_finite = np.isfinite(s_bound)
+        bound_or_zero = np.where(bound_finite, s_bound, 0.0)
+        a_lo, a_hi = problem.accel_bounds()
+        v_lo, v_lo_half = problem.speed_floor()
+        tables = _Tables(
+            slopes=slopes,
+            rel_s=rel_s,
+            piece_e=piece_e,
+            piece_d=piece_d,
+            b=b,
+            c=c,
+            rate=rate,
+            bound=bound,
+            end_s=end_s,
+            end_min=end_min,
+            s_bound=s_bound,
+            bound_finite=bound_finite,
+            bound_or_zero=bound_or_zero,
+            a_lo=a_lo,
+            a_hi=a_hi,
+            v_lo=v_lo,
+            v_lo_half=v_lo_half,
+        )
+        for value in vars(tables).values():
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+        return tables
 
 
 @dataclass(frozen=True, eq=False)
@@ -411,15 +538,16 @@ def speed_limit(problem: SpeedProblem, s: ArrayLike) -> tuple[FloatArray, FloatA
 
     At a breakpoint the slope is that of the segment ahead; beyond the ends the limit is constant (slope 0).
     """
-    xs, ys = problem.limit_s, problem.limit_v
     s = np.asarray(s, dtype=np.float64)
-    value = np.interp(s, xs, ys)
-    if xs.size < 2:
-        return value, np.zeros_like(value)
-    segment = np.clip(np.searchsorted(xs, s, side="right") - 1, 0, xs.size - 2)
-    slope = (ys[segment + 1] - ys[segment]) / (xs[segment + 1] - xs[segment])
-    slope = np.where((s < xs[0]) | (s >= xs[-1]), 0.0, slope)
-    return value, slope
+    value = np.interp(s, problem.limit_s, problem.limit_v)
+    slope = problem._tables.slopes[np.searchsorted(problem.limit_s, s, side="right")]
+    return value, np.asarray(slope, dtype=np.float64)
+
+
+def _limit_at(problem: SpeedProblem, s: float) -> tuple[float, float]:
+    """:func:`speed_limit` at one point, as floats."""
+    value = float(np.interp(s, problem.limit_s, problem.limit_v))
+    return value, float(problem._tables.slopes[np.searchsorted(problem.limit_s, s, side="right")])
 
 
 @dataclass(frozen=True)
@@ -439,34 +567,15 @@ class _EndTerms:
 
 
 def _end_terms(problem: SpeedProblem, s: float) -> _EndTerms:
-    b = -0.5 * problem.a_min
-    c = b * b / (2.0 * problem.jerk_max)
-    stop = problem.s_stop
-    rate = bound = None
-    if problem.s_upper is not None and math.isfinite(problem.s_upper[-1]):
-        bound, before = float(problem.s_upper[-1]), float(problem.s_upper[-2])
-        rate = max((bound - before) / problem.dt, 0.0) if math.isfinite(before) else 0.0
+    tables = problem._tables
+    b, c, stop = tables.b, tables.c, problem.s_stop
     if s >= stop:
-        return _EndTerms(b, c, (0.0 + c) ** 2 + 2.0 * b * stop, rate, bound)
-    xs, ys = problem.limit_s, problem.limit_v
-    here = float(np.interp(s, xs, ys))
-    ahead = (xs > s) & (xs < stop)
-    cand_s = [np.array([s]), xs[ahead]]
-    cand_v = [np.array([here]), ys[ahead]]
-    if math.isfinite(stop):
-        cand_s.append(np.array([stop]))
-        cand_v.append(np.array([0.0]))
-    if xs.size >= 2:
-        # stationary points of (v(s′) + c)² + 2b s′ on falling segments: v(s′) + c = −b/m
-        m = np.diff(ys) / np.diff(xs)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x_star = xs[:-1] + (-b / m - c - ys[:-1]) / m
-        inside = (m < 0) & (x_star > np.maximum(xs[:-1], s)) & (x_star < np.minimum(xs[1:], stop))
-        cand_s.append(x_star[inside])
-        cand_v.append(ys[:-1][inside] + m[inside] * (x_star[inside] - xs[:-1][inside]))
-    energy = (np.maximum(np.concatenate(cand_v), 0.0) + c) ** 2 + 2.0 * b * np.concatenate(cand_s)
-    best = int(np.argmin(energy))
-    return _EndTerms(b, c, None if best == 0 else float(energy[best]), rate, bound)
+        return _EndTerms(b, c, (0.0 + c) ** 2 + 2.0 * b * stop, tables.rate, tables.bound)
+    # the least energy over s′ > s (table) against that of s′ = s; s′ = s wins a tie (then v_end = v_lim)
+    ahead = float(tables.end_min[np.searchsorted(tables.end_s, s, side="right")])
+    here = max(float(np.interp(s, problem.limit_s, problem.limit_v)), 0.0) + c
+    energy = ahead if ahead < here * here + 2.0 * b * s else None
+    return _EndTerms(b, c, energy, tables.rate, tables.bound)
 
 
 def end_speed_limit(problem: SpeedProblem, s: float) -> float:
@@ -509,22 +618,29 @@ def integrate_jerk(
 
 def _violations(problem: SpeedProblem, s: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Per-knot violations ``(e_v, e_s)`` of ``v_lim``/``v ≥ 0`` and ``s_bound`` (0 at knot 0)."""
-    limit, _ = speed_limit(problem, s)
+    limit = np.interp(s, problem.limit_s, problem.limit_v)
     e_v = np.maximum(np.maximum(v - limit, -v), 0.0)
-    bound = problem.s_bound()
-    e_s = np.where(np.isfinite(bound), np.maximum(s - np.where(np.isfinite(bound), bound, 0.0), 0.0), 0.0)
-    e_v[0] = e_s[0] = 0.0
-    return e_v, e_s
+    e_v[0] = 0.0
+    return e_v, _position_violations(problem, s)
+
+
+def _position_violations(problem: SpeedProblem, s: FloatArray) -> FloatArray:
+    """Per-knot violations of ``s_bound`` [m] (0 at knot 0)."""
+    tables = problem._tables
+    e_s = np.where(tables.bound_finite, np.maximum(s - tables.bound_or_zero, 0.0), 0.0)
+    e_s[0] = 0.0
+    return e_s
 
 
 def objective(problem: SpeedProblem, s: FloatArray, v: FloatArray, a: FloatArray, jerk: ArrayLike) -> float:
     """``J`` of the module docstring for a profile, with its true violations as the slacks."""
     w, dt = problem.weights, problem.dt
     jerk = np.asarray(jerk, dtype=np.float64)
-    limit, _ = speed_limit(problem, s[1:])
+    s = np.asarray(s, dtype=np.float64)
+    limit = np.interp(s[1:], problem.limit_s, problem.limit_v)
     limit[-1] = end_speed_limit(problem, float(s[-1]))
     e_v = np.maximum(v[1:] - limit, 0.0)
-    _, e_s = _violations(problem, s, v)
+    e_s = _position_violations(problem, s)
     running = dt * (
         w.speed * np.sum((v[1:] - problem.v_target) ** 2)
         + w.acceleration * np.sum(a[1:] ** 2)
@@ -601,7 +717,59 @@ def braking_profile(problem: SpeedProblem) -> FloatArray:
 # The QP, built once per (N, dt, weights)
 
 
-def _build_qp(steps: int, dt: float, w: SpeedWeights, residual: float = 1e-7) -> Any:
+class _QP:
+    """A built QP evaluated on numpy arrays through CasADi's function buffer (no conversion per call).
+
+    Fill ``p``, ``lbx``, ``ubx``, ``lbg`` and ``ubg`` in place (``slopes`` and ``limit_rows`` are views of
+    ``p`` and ``ubg`` in the shape ``(_PIECES, N)`` of :func:`_local_model`), call :meth:`solve`, then read
+    ``x`` and ``lam_g``: the next call overwrites them. The outputs the solver does not read are not
+    copied. The initial guesses are zero, as in a call without them.
+    """
+
+    def __init__(self, function: Any, steps: int) -> None:
+        n = steps
+        self.p = np.zeros(3 + _PIECES * n)
+        self.lbx = np.zeros(6 * n + 3)
+        self.ubx = np.zeros(6 * n + 3)
+        self.lbg = np.zeros(_ROWS * n)
+        self.ubg = np.zeros(_ROWS * n)
+        self.x = np.zeros(6 * n + 3)
+        self.lam_g = np.zeros(_ROWS * n)
+        self.slopes = self.p[3:].reshape(n, _PIECES).T
+        self.limit_rows = self.ubg.reshape(n, _ROWS).T[4 : 4 + _PIECES]
+        self._function = function
+        zero_x, zero_g = np.zeros(6 * n + 3), np.zeros(_ROWS * n)
+        inputs = {"p": self.p, "lbx": self.lbx, "ubx": self.ubx, "lbg": self.lbg, "ubg": self.ubg}
+        inputs |= {"x0": zero_x, "lam_x0": zero_x, "lam_g0": zero_g}
+        self._inputs = [(function.index_in(name), array.data) for name, array in inputs.items()]
+        outputs = {"x": self.x, "lam_g": self.lam_g}
+        self._outputs = [(function.index_out(name), array.data) for name, array in outputs.items()]
+
+    def solve(self) -> tuple[int, int]:
+        """Solve the QP in the arrays: ``(HPIPM's return flag, its iterations)``.
+
+        Raises:
+            RuntimeError: CasADi reports a failed evaluation.
+        """
+        # A new buffer per call (about 30 µs): in CasADi 3.7.0 and 3.8.0 (not 3.8.2) a buffer evaluated
+        # again carries state over from the last evaluation (the QP's x came out as the sum of both).
+        buffer, evaluate = self._function.buffer()
+        for index, data in self._inputs:
+            buffer.set_arg(index, data)
+        for index, data in self._outputs:
+            buffer.set_res(index, data)
+        self.x.fill(np.nan)  # so that an evaluation that writes nothing cannot pass for a solution
+        self.lam_g.fill(np.nan)
+        evaluate()
+        code = buffer.ret()
+        if code:
+            raise RuntimeError(f"the QP's evaluation failed (CasADi code {code})")
+        # the buffer's own statistics (it evaluates in its own memory); CasADi 3.6 has only the function's
+        stats = buffer.stats() if hasattr(buffer, "stats") else self._function.stats()
+        return int(stats.get("return_status", -1)), int(stats.get("iter_count", 0))
+
+
+def _build_qp(steps: int, dt: float, w: SpeedWeights, residual: float = 1e-7) -> _QP:
     """The CasADi/HPIPM QP in stage order ``z = [x_0, u_0, x_1, u_1, …, x_N]``.
 
     ``x_k = (s_k − s0, v_k, a_k)``, ``u_k = (j_k, σᵛ_{k+1}, σˢ_{k+1})``. Rows of stage ``k < N``: the three
@@ -642,7 +810,7 @@ def _build_qp(steps: int, dt: float, w: SpeedWeights, residual: float = 1e-7) ->
         "nu": [3] * n + [0],
         "ng": [_ROWS - 3] * n + [0],
     }
-    return ca.qpsol("speed_qp", "hpipm", {"x": z, "p": p, "f": cost, "g": g}, options)
+    return _QP(ca.qpsol("speed_qp", "hpipm", {"x": z, "p": p, "f": cost, "g": g}, options), n)
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -651,7 +819,7 @@ def _build_qp(steps: int, dt: float, w: SpeedWeights, residual: float = 1e-7) ->
 
 def _cap(problem: SpeedProblem, s_bar: FloatArray) -> FloatArray:
     """``s_bar`` (relative to s0) capped by the bounds ahead of each knot, non-decreasing, ≥ 0."""
-    s_bar = np.minimum(s_bar, problem.s_bound() - problem.s0)
+    s_bar = np.minimum(s_bar, problem._tables.s_bound - problem.s0)
     s_bar = np.minimum.accumulate(s_bar[::-1])[::-1]
     return np.maximum(s_bar, 0.0)
 
@@ -670,7 +838,7 @@ def _cold_start(problem: SpeedProblem) -> tuple[FloatArray, float]:
     if end <= 1e-6:
         return np.zeros(n + 1), 0.0
     sigma = np.linspace(0.0, end, _GUESS_POINTS)
-    v_cap = np.minimum(speed_limit(problem, problem.s0 + sigma)[0], problem.v_target)
+    v_cap = np.minimum(np.interp(problem.s0 + sigma, problem.limit_s, problem.limit_v), problem.v_target)
     if stop <= reach:
         v_cap[-1] = 0.0
     brake, accel = -0.5 * problem.a_min, max(0.5 * problem.a_max, 1e-3)
@@ -729,12 +897,11 @@ def _iterate(problem: SpeedProblem, jerk: FloatArray) -> _Iterate:
 
 def _within_boxes(problem: SpeedProblem, iterate: _Iterate, tol: float = 1e-6) -> bool:
     """Whether an iterate keeps the hard acceleration and speed bounds (its jerks are clipped already)."""
-    a_lo, a_hi = problem.accel_bounds()
-    floor, _ = problem.speed_floor()
+    tables = problem._tables
     return bool(
-        np.all(iterate.a[1:] >= a_lo[1:] - tol)
-        and np.all(iterate.a[1:] <= a_hi[1:] + tol)
-        and np.all(iterate.v >= floor - tol)
+        np.all(iterate.a[1:] >= tables.a_lo[1:] - tol)
+        and np.all(iterate.a[1:] <= tables.a_hi[1:] + tol)
+        and np.all(iterate.v >= tables.v_lo - tol)
     )
 
 
@@ -757,7 +924,7 @@ def _max_violation(problem: SpeedProblem, iterate: _Iterate) -> float:
 
 def _true_limit(problem: SpeedProblem, s: FloatArray) -> FloatArray:
     """The limit rows' true right-hand side at knots ``1 … N`` of ``s`` (relative to s0)."""
-    value, _ = speed_limit(problem, problem.s0 + s[1:])
+    value = np.interp(problem.s0 + s[1:], problem.limit_s, problem.limit_v)
     value[-1] = end_speed_limit(problem, problem.s0 + float(s[-1]))
     return value
 
@@ -775,29 +942,11 @@ def _local_model(
     expected ``v_N`` [m/s]. Also returns whether those are tangents (exact at ``v_N = v_end_guess``) rather
     than chords, and their curvature in ``v`` per unit multiplier, ``1/(ŵ + c)`` (0 for a chord or unused).
     """
-    xs, ys = problem.limit_s - problem.s0, problem.limit_v
+    tables = problem._tables
     s = s_bar[1:]
-    n = s.size
-    e = np.full((_PIECES, n), np.inf)
-    d = np.zeros((_PIECES, n))
-    # segments −1 (before xs[0]) … m−1 (after xs[−1]); slopes[i + 1] is the slope of segment i
-    m = xs.size
-    slopes = np.concatenate([[0.0], np.diff(ys) / np.diff(xs), [0.0]])
-    seg = np.searchsorted(xs, s, side="right") - 1
-
-    def piece(i: NDArray[np.intp]) -> tuple[FloatArray, FloatArray]:
-        anchor = np.clip(i, 0, m - 1)
-        slope = slopes[i + 1]
-        return ys[anchor] - slope * xs[anchor], slope
-
-    e[0], d[0] = piece(seg)
-    behind = (seg >= 0) & (slopes[np.maximum(seg, 0) + 1] < slopes[np.maximum(seg, 0)])
-    if behind.any():
-        e[1, behind], d[1, behind] = piece(seg[behind] - 1)
-    ahead = seg <= m - 2
-    ahead &= slopes[np.minimum(seg, m - 2) + 2] < slopes[np.minimum(seg, m - 2) + 1]
-    if ahead.any():
-        e[2, ahead], d[2, ahead] = piece(seg[ahead] + 1)
+    column = np.searchsorted(tables.rel_s, s, side="right")
+    e = tables.piece_e[:, column]
+    d = tables.piece_d[:, column]
     # knot N: v_end. Its terms (v + c)² + 2b s ≤ K are convex in (s, v) (in s alone v_end is far too steep
     # near a stop to linearise). (v + c)² is replaced by its tangent at v̂, the expected v_N (Newton: exact
     # where v_N = v̂), or, when v̂ is below _NEWTON_MIN_SPEED, by its chord over [0, _NEWTON_MIN_SPEED]
@@ -806,8 +955,8 @@ def _local_model(
     s_end = float(s[-1])
     terms = _end_terms(problem, problem.s0 + s_end)
     b, c = terms.b, terms.c
-    limit, slope = speed_limit(problem, problem.s0 + s_end)
-    e[0, -1], d[0, -1] = float(limit) - float(slope) * s_end, float(slope)
+    limit, slope = _limit_at(problem, problem.s0 + s_end)
+    e[0, -1], d[0, -1] = limit - slope * s_end, slope
     exact = True
     inverse = np.zeros(_PIECES)  # 1/(v̂ + c) of tangent rows: their curvature in v per unit multiplier
 
@@ -875,7 +1024,7 @@ class SpeedSolver:
         self._max_cached = max_cached
         self._restore_violation = float(restore_violation)
         self._qp_residual = float(qp_residual)
-        self._qps: OrderedDict[tuple[int, float, SpeedWeights], Any] = OrderedDict()
+        self._qps: OrderedDict[tuple[int, float, SpeedWeights], _QP] = OrderedDict()
         self._build_count = 0
 
     @property
@@ -883,7 +1032,7 @@ class SpeedSolver:
         """How many QPs this solver has built (one per new ``(N, Δt, weights)`` still in the cache)."""
         return self._build_count
 
-    def _qp(self, problem: SpeedProblem) -> Any:
+    def _qp(self, problem: SpeedProblem) -> _QP:
         key = (problem.steps, problem.dt, problem.weights)
         qp = self._qps.get(key)
         if qp is None:
@@ -924,8 +1073,8 @@ class SpeedSolver:
             (s_bar, v_end), origin = _shifted(problem, warm_start, int(shift)), "warm"
         else:
             (s_bar, v_end), origin = _cold_start(problem), "cold"
-        bounds = self._bounds(problem)
-        run = self._sqp(problem, qp, bounds, s_bar, v_end, self._max_iterations)
+        self._set_bounds(problem, qp)
+        run = self._sqp(problem, qp, s_bar, v_end, self._max_iterations)
         best, converged, notes = run.best, run.converged, run.notes
         qp_solves, ipm_iterations = run.qp_solves, run.ipm_iterations
         if best is not None and _max_violation(problem, best) > self._restore_violation:
@@ -934,7 +1083,7 @@ class SpeedSolver:
             stop = braking_profile(problem)
             s_stop, v_stop, a_stop = integrate_jerk(problem.dt, 0.0, problem.v0, problem.a0, stop)
             if _max_violation(problem, _Iterate(stop, s_stop, v_stop, a_stop, 0.0)) <= 1e-9:
-                retry = self._sqp(problem, qp, bounds, s_stop, 0.0, self._max_iterations)
+                retry = self._sqp(problem, qp, s_stop, 0.0, self._max_iterations)
                 qp_solves += retry.qp_solves
                 ipm_iterations += retry.ipm_iterations
                 if retry.best is not None and retry.best.merit < best.merit:
@@ -983,43 +1132,30 @@ class SpeedSolver:
             qp_solves=qp_solves,
         )
 
-    def _sqp(
-        self,
-        problem: SpeedProblem,
-        qp: Any,
-        bounds: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
-        s_bar: FloatArray,
-        v_end: float,
-        budget: int,
-    ) -> _Run:
-        """Up to ``budget`` SQP iterations from the linearisation point ``(s̄, v̂_N)``."""
+    def _sqp(self, problem: SpeedProblem, qp: _QP, s_bar: FloatArray, v_end: float, budget: int) -> _Run:
+        """Up to ``budget`` SQP iterations, linearised first at ``(s̄, v̂_N)`` (bounds set in ``qp``)."""
         n = problem.steps
-        lbx, ubx, lbg, ubg = bounds
         best: _Iterate | None = None
         multipliers = np.zeros(_PIECES)  # of the end rows in the last QP
         converged = False
         qp_solves = ipm_iterations = 0
         notes: list[str] = []
+        end_rows = slice(_ROWS * (n - 1) + 4, _ROWS * (n - 1) + 4 + _PIECES)
+        qp.p[0] = problem.v_target
         for _ in range(budget):
             e, d, exact_end, inverse = _local_model(problem, s_bar, v_end)
-            ubg[4 : 4 + _PIECES] = e
-            curvature = float(np.dot(multipliers, inverse))
+            qp.limit_rows[...] = e
+            qp.slopes[...] = d
+            qp.p[1] = float(np.dot(multipliers, inverse))  # the end rows' curvature
+            qp.p[2] = v_end
             try:
-                solution = qp(
-                    p=np.concatenate([[problem.v_target, curvature, v_end], d.ravel(order="F")]),
-                    lbx=lbx,
-                    ubx=ubx,
-                    lbg=lbg.ravel(order="F"),
-                    ubg=ubg.ravel(order="F"),
-                )
+                flag, iterations = qp.solve()
             except RuntimeError as error:  # CasADi reports a crashed backend this way
                 notes.append(f"QP {qp_solves + 1} raised: {str(error).splitlines()[-1][:120]}")
                 break
-            stats = qp.stats()
             qp_solves += 1
-            ipm_iterations += int(stats.get("iter_count", 0))
-            flag = int(stats.get("return_status", -1))
-            jerk = np.asarray(solution["x"], dtype=np.float64).ravel()[3 : 6 * n : 6]
+            ipm_iterations += iterations
+            jerk = qp.x[3 : 6 * n : 6]
             if flag not in _HPIPM_USABLE or not np.all(np.isfinite(jerk)):
                 notes.append(f"QP {qp_solves} failed (HPIPM flag {flag})")
                 break
@@ -1029,8 +1165,7 @@ class SpeedSolver:
                     notes.append(f"QP {qp_solves} failed (HPIPM flag {flag}, iterate outside the boxes)")
                     break
                 notes.append(f"QP {qp_solves} stopped early (HPIPM flag {flag}); its iterate was used")
-            end_rows = slice(_ROWS * (n - 1) + 4, _ROWS * (n - 1) + 4 + _PIECES)
-            lam = np.asarray(solution["lam_g"], dtype=np.float64).ravel()[end_rows]
+            lam = qp.lam_g[end_rows]
             multipliers = np.maximum(np.nan_to_num(lam, nan=0.0, posinf=0.0, neginf=0.0), 0.0)
             no_worse = best is None or target.merit <= best.merit + _MERIT_SLACK * (1 + abs(best.merit))
             if no_worse and self._model_error(problem, e, d, target, exact_end) <= self._tolerance:
@@ -1046,27 +1181,28 @@ class SpeedSolver:
         return _Run(best, converged, qp_solves, ipm_iterations, notes)
 
     @staticmethod
-    def _bounds(problem: SpeedProblem) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """``lbx, ubx`` (flat, in stage order) and ``lbg, ubg`` (rows × N; the limit rows' ``ubg`` unset)."""
+    def _set_bounds(problem: SpeedProblem, qp: _QP) -> None:
+        """Sets ``lbx, ubx`` (in stage order) and ``lbg, ubg`` of ``qp``, but the limit rows' ``ubg``."""
         n = problem.steps
-        a_lo, a_hi = problem.accel_bounds()
-        v_lo, v_lo_half = problem.speed_floor()
-        lower = np.empty((6, n))
-        upper = np.empty((6, n))
+        tables = problem._tables
+        a_lo, a_hi, v_lo = tables.a_lo, tables.a_hi, tables.v_lo
+        lower = qp.lbx[: 6 * n].reshape(n, 6).T  # (6, n) views of the stages 0 … N−1
+        upper = qp.ubx[: 6 * n].reshape(n, 6).T
         lower[0], upper[0] = -np.inf, np.inf  # s − s0
         lower[1], upper[1] = v_lo[:n], np.inf
         lower[2], upper[2] = a_lo[:n], a_hi[:n]
         lower[:3, 0] = upper[:3, 0] = (0.0, problem.v0, problem.a0)
         lower[3], upper[3] = -problem.jerk_max, problem.jerk_max
         lower[4:], upper[4:] = 0.0, np.inf
-        lbx = np.concatenate([lower.ravel(order="F"), [-np.inf, v_lo[n], a_lo[n]]])
-        ubx = np.concatenate([upper.ravel(order="F"), [np.inf, np.inf, a_hi[n]]])
-        lbg = np.zeros((_ROWS, n))  # dynamics (= 0), half-step speed (≥ v_lo), limit and position (≤)
-        ubg = np.zeros((_ROWS, n))
-        lbg[3], ubg[3] = v_lo_half, np.inf
+        qp.lbx[6 * n :] = (-np.inf, v_lo[n], a_lo[n])
+        qp.ubx[6 * n :] = (np.inf, np.inf, a_hi[n])
+        # rows × N: dynamics (= 0), half-step speed (≥ v_lo), limit and position (≤)
+        lbg = qp.lbg.reshape(n, _ROWS).T
+        ubg = qp.ubg.reshape(n, _ROWS).T
+        lbg[:3], ubg[:3] = 0.0, 0.0
+        lbg[3], ubg[3] = tables.v_lo_half, np.inf
         lbg[4:] = -np.inf
-        ubg[-1] = problem.s_bound()[1:] - problem.s0  # may be +inf
-        return lbx, ubx, lbg, ubg
+        ubg[-1] = tables.s_bound[1:] - problem.s0  # may be +inf
 
     @staticmethod
     def _model_error(
