@@ -26,7 +26,10 @@ from scipy.ndimage import maximum_filter1d
 from planner.candidates import lane_bounds
 from planner.collision import FrenetBoxes
 from planner.problem import Lane, Vehicle
-from planner.reference import FloatArray, ReferenceLine
+from planner.reference import FloatArray, ReferenceLine, widths_at
+
+#: how far beyond the lane edge [m] a bound outside the lane is kept (it blocks the knot either way)
+BEYOND_LANE = 1.0
 
 
 @dataclass(frozen=True)
@@ -72,7 +75,8 @@ def curve_bulge(ref: ReferenceLine, s: FloatArray, vehicle: Vehicle) -> tuple[Fl
     half_l = 0.5 * vehicle.length
     kappa = ref.kappa_at(s)
     step = float(s[1] - s[0]) if s.shape[0] > 1 else half_l
-    size = 2 * int(np.ceil(half_l / max(step, 1e-6))) + 1
+    # knots within L/2 either side; never more than there are knots (a window past both ends sees them all)
+    size = 2 * int(min(np.ceil(half_l / max(step, 1e-6)), s.shape[0])) + 1
     left_turn = maximum_filter1d(np.clip(kappa, 0.0, None), size=size, mode="nearest")
     right_turn = maximum_filter1d(np.clip(-kappa, 0.0, None), size=size, mode="nearest")
     sag = 0.5 * half_l**2
@@ -129,10 +133,17 @@ def lateral_bounds(
         lower = np.maximum(lower, left_edge.max(axis=1))
         upper = np.minimum(upper, right_edge.min(axis=1))
     kappa = ref.kappa_at(s)
-    # 1 − κ d ≥ |κ|/κ_max  ⇔  κ d ≤ 1 − |κ|/κ_max
-    room = 1.0 - np.abs(kappa) / vehicle.max_curvature
-    with np.errstate(divide="ignore", invalid="ignore"):
-        limit = room / kappa
+    # 1 − κ d ≥ |κ|/κ_max  ⇔  κ d ≤ 1 − |κ|/κ_max  ⇔  d ≤ 1/κ − 1/κ_max (κ > 0), d ≥ 1/κ + 1/κ_max
+    # (κ < 0): the path keeps a radius of at least 1/κ_max. Written so, it stays finite for any κ_max > 0 (the
+    # quotient form overflowed for a tiny one). Beyond the lane (a vehicle that cannot turn that
+    # tightly) the knot is blocked whether the bound is a metre outside or 10³⁰⁰ m: it is kept within
+    # BEYOND_LANE of the edge, a number the lateral QP can still take as a bound.
+    curved = np.abs(kappa) > 1e-9
+    radius = 1.0 / np.where(curved, kappa, 1.0)
+    limit = np.where(curved, radius - np.sign(kappa) / vehicle.max_curvature, 0.0)
+    lane_left = widths_at(lane.left_width, ref, s, field_name="lane.left_width")
+    lane_right = widths_at(lane.right_width, ref, s, field_name="lane.right_width")
+    limit = np.clip(limit, -lane_right - BEYOND_LANE, lane_left + BEYOND_LANE)
     upper = np.where(kappa > 1e-9, np.minimum(upper, limit), upper)
     lower = np.where(kappa < -1e-9, np.maximum(lower, limit), lower)
     blocked_at = np.flatnonzero(lower > upper)

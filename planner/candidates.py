@@ -45,6 +45,9 @@ _BRANCH_RATIO = 0.9
 _OWN_STRETCH = 1.5
 #: time before full deceleration is reached when braking from cruise (jerk-limited ramp) [s]
 BRAKE_DELAY = 1.5
+#: longest path the candidates cover [m]: a longer braking distance (``v²/a`` of a weak brake: 10³⁰¹ m
+#: for 10⁻³⁰⁰ m/s²) or minimum length is capped here, and the speed profile keeps within the path
+MAX_PATH_LENGTH = 20_000.0
 #: farthest the ego may be outside the lane, or before the reference's start [m]
 MAX_EGO_OFF_ROAD = 10.0
 #: largest heading difference between ego and reference accepted [rad]
@@ -186,8 +189,14 @@ def path_length(ego: Ego, vehicle: Vehicle, options: Options) -> float:
     target = vehicle.max_speed if options.target_speed is None else options.target_speed
     fastest = max(ego.speed, target)
     # the speed profile keeps room to stop at half the vehicle's deceleration beyond its horizon
-    braking = fastest**2 / vehicle.max_deceleration + fastest * BRAKE_DELAY
-    return max(options.min_path_length, options.horizon_time * fastest + braking)
+    braking = braking_distance(fastest, 0.5 * vehicle.max_deceleration) + fastest * BRAKE_DELAY
+    return min(max(options.min_path_length, options.horizon_time * fastest + braking), MAX_PATH_LENGTH)
+
+
+def braking_distance(speed: float, deceleration: float) -> float:
+    """``v²/(2a)`` [m] from ``speed`` [m/s] at ``deceleration`` [m/s²] > 0, at most :data:`MAX_PATH_LENGTH`
+    (never an overflow: ``v·(v/a)`` is at worst ``inf`` before the cap)."""
+    return min(0.5 * speed * (speed / deceleration), MAX_PATH_LENGTH)
 
 
 def _profiles(tau: FloatArray, d0: float, slope: FloatArray, bend: FloatArray, end: FloatArray) -> FloatArray:
@@ -232,7 +241,7 @@ def generate_candidates(
     check_ego_on_road(ref, lane, start)
     # Up to the reference's end, or past it along the end ray by the braking distance (a vehicle
     # too fast to stop before the end still needs a path to brake on).
-    braking = ego.speed**2 / (2.0 * vehicle.max_deceleration) + ego.speed * BRAKE_DELAY + vehicle.length
+    braking = braking_distance(ego.speed, vehicle.max_deceleration) + ego.speed * BRAKE_DELAY + vehicle.length
     s_end = min(start.s + path_length(ego, vehicle, options), max(ref.length, start.s + braking))
     if ref.length - start.s < 1e-3:
         raise InvalidInputError("the ego is at or past the end of the reference line", field="ego")

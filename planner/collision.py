@@ -31,6 +31,13 @@ STATIC_MOTION = 0.5
 OUTLINE_STEP = 0.25
 #: outlines longer than this [m] are cut to the corridor around the reference before mapping
 CLIP_LENGTH = 200.0
+#: most outline points mapped in one call; beyond, the densification step grows with the outlines'
+#: total length (a corridor as wide as a 10⁸ m vehicle or lane keeps a 10⁸ m circle whole). The API's
+#: outline limit (20 km, plus what cutting to the corridor adds) stays below it.
+MAX_OUTLINE_POINTS = 200_000
+#: an obstacle dimension below this [m] is zero: a circle is its centre, a box a segment or a point
+#: (GEOS buffers a point by a denormal radius into NaN)
+POINT_SIZE = 1e-9
 
 
 def box_corners(x: FloatArray, y: FloatArray, heading: FloatArray, length: float, width: float) -> FloatArray:
@@ -72,15 +79,32 @@ def is_static(obstacle: Obstacle, horizon: float) -> bool:
 
 
 def obstacle_shape(obstacle: Obstacle, t: float = 0.0) -> BaseGeometry:
-    """The obstacle's outline as a shapely polygon (a dynamic one at time ``t`` [s])."""
+    """The obstacle's outline as a shapely geometry (a dynamic one at time ``t`` [s]): a polygon, or
+    what is left of one too thin to have an area — a point or a segment, never an empty geometry.
+
+    A circle of radius below :data:`POINT_SIZE`, or below the rounding of its centre's coordinates
+    (10⁻⁸ m at 10⁷ m: it buffers to nothing), is its centre. A box with a side below
+    :data:`POINT_SIZE` is a segment, with both, a point. A polygon that crosses itself is repaired;
+    one without area (collinear points) is its line work.
+    """
     if isinstance(obstacle, PolygonObstacle):
         poly = shapely.Polygon(obstacle.polygon)
-        return poly if poly.is_valid else poly.buffer(0)
+        return poly if poly.is_valid else _nonempty(shapely.make_valid(poly), obstacle.polygon)
     if isinstance(obstacle, CircleObstacle):
-        return shapely.Point(obstacle.center).buffer(obstacle.radius, quad_segs=8)
+        center = shapely.Point(obstacle.center)
+        if obstacle.radius < POINT_SIZE:
+            return center
+        return _nonempty(center.buffer(obstacle.radius, quad_segs=8), np.asarray(obstacle.center)[None, :])
     state = prediction_at(obstacle, np.array([t]))[0]
-    corners = box_corners(state[0], state[1], state[2], obstacle.length, obstacle.width)
-    return shapely.Polygon(corners)
+    length, width = (size if size >= POINT_SIZE else 0.0 for size in (obstacle.length, obstacle.width))
+    corners = box_corners(state[0], state[1], state[2], length, width)
+    box = shapely.Polygon(corners)
+    return box if box.is_valid and box.area > 0.0 else shapely.MultiPoint(corners).convex_hull
+
+
+def _nonempty(shape: BaseGeometry, points: FloatArray) -> BaseGeometry:
+    """``shape``, or the convex hull of ``points`` (k, 2) [m] where it came out empty."""
+    return shape if not shape.is_empty else shapely.MultiPoint(points).convex_hull
 
 
 @dataclass(frozen=True)
@@ -103,10 +127,14 @@ def frenet_boxes(
 ) -> FrenetBoxes:
     """Map every outline (densified to :data:`OUTLINE_STEP`) with TransF-κ in one call; box each.
 
-    With ``reach`` [m], only what lies within ``reach`` of the reference line counts: an obstacle
-    farther away is left out, and a long outline (over :data:`CLIP_LENGTH`) is cut to that corridor
-    first — the vehicle cannot get there, and mapping kilometres of outline would cost seconds.
+    A point or a segment (an obstacle without area, see :func:`obstacle_shape`) is its own outline;
+    an empty geometry is left out. With ``reach`` [m], only what lies within ``reach`` of the
+    reference line counts: an obstacle farther away is left out, and a long outline (over
+    :data:`CLIP_LENGTH`) is cut to that corridor first — the vehicle cannot get there, and mapping
+    kilometres of outline would cost seconds. Outlines longer than :data:`MAX_OUTLINE_POINTS` steps
+    in all are densified more coarsely.
     """
+    shapes = [(ob_id, shape) for ob_id, shape in shapes if not shape.is_empty]
     if reach is not None and shapes:
         line = shapely.LineString(ref.points)
         geoms = np.array([shape for _, shape in shapes], dtype=object)
@@ -124,8 +152,12 @@ def frenet_boxes(
     if not shapes:
         empty = np.zeros(0)
         return FrenetBoxes((), empty, empty, empty, empty)
-    outlines = [shapely.segmentize(shapely.boundary(shape), OUTLINE_STEP) for _, shape in shapes]
-    coords = [np.asarray(shapely.get_coordinates(o)) for o in outlines]
+    # The boundary of a polygon, the geometry itself for a point or a line: every vertex of the
+    # densified geometry (a polygon's holes lie inside its outer ring, so they do not widen its box).
+    total = float(np.sum(shapely.length([shape for _, shape in shapes])))
+    step = max(OUTLINE_STEP, total / MAX_OUTLINE_POINTS)
+    dense = [shapely.segmentize(shape, step) for _, shape in shapes]
+    coords = [np.asarray(shapely.get_coordinates(g)) for g in dense]
     sizes = np.array([c.shape[0] for c in coords])
     starts = np.concatenate(([0], np.cumsum(sizes)[:-1]))
     fr = to_frenet(ref, np.vstack(coords))

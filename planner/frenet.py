@@ -88,6 +88,17 @@ def nearest_sample(
     found = ref.tree.query(points, k=2, workers=-1 if points.shape[0] > 20_000 else 1)
     dist: FloatArray = np.asarray(found[0], dtype=float)
     idx: NDArray[np.intp] = np.asarray(found[1], dtype=np.intp)
+    far = np.flatnonzero(~np.isfinite(dist[:, 1]))
+    if far.size:
+        # The tree squares distances: beyond ~10¹⁵⁴ m they overflow and it reports no neighbour
+        # (index M). Such a point is measured to every sample with hypot (no squares); the samples
+        # within the tie limit of the nearest (at that distance, all of them) tie, the last wins.
+        gap = ref.points[None, :, :] - points[far, None, :]
+        measured = np.hypot(gap[..., 0], gap[..., 1])
+        nearest = measured.min(axis=1, keepdims=True)
+        ties = measured <= nearest * (1.0 + tie_rel) + tie_abs
+        idx[far, 0] = idx[far, 1] = np.max(np.where(ties, np.arange(ref.size), -1), axis=1)
+        dist[far, 0] = dist[far, 1] = nearest[:, 0]
     limit = dist[:, 0] * (1.0 + tie_rel) + tie_abs
     tie = dist[:, 1] <= limit
     chosen = np.where(tie, np.maximum(idx[:, 0], idx[:, 1]), idx[:, 0])

@@ -235,8 +235,9 @@ def _lateral_qp(
     upper = np.maximum(bounds.upper - QP_SLACK, lower)
     kappa = ref.kappa_at(s)
     one = np.clip(1.0 - kappa * np.clip(d_ref, lower, upper), 0.05, None)
-    ddd_upper = (allowance * one - kappa) * one
-    ddd_lower = (-allowance * one - kappa) * one
+    with np.errstate(over="ignore"):  # a curvature limit near the largest float: ±inf, no bound
+        ddd_upper = (allowance * one - kappa) * one
+        ddd_lower = (-allowance * one - kappa) * one
     problem = LateralQPProblem(
         ds=float(s[1] - s[0]),
         d_lower=lower,

@@ -415,7 +415,7 @@ def problem_at(problem: PlanningProblem, state: VehicleState) -> PlanningProblem
 def obstacle_outlines(problem: PlanningProblem, t: float) -> tuple[tuple[str, FloatArray], ...]:
     """Every obstacle's outline at sim time ``t`` [s], as ``(id, coordinates (k, 2))``."""
     return tuple(
-        (ob.id, np.asarray(shapely.get_coordinates(obstacle_shape(ob, t).exterior)))
+        (ob.id, np.asarray(shapely.get_coordinates(shapely.boundary(obstacle_shape(ob, t)))))
         for ob in problem.obstacles
     )
 
