@@ -105,47 +105,70 @@ def lateral_bounds(
     """
     theta = np.zeros_like(s) if heading_error is None else np.asarray(heading_error)
     half_extent = 0.5 * vehicle.length * np.abs(np.sin(theta)) + 0.5 * vehicle.width * np.cos(theta)
-    bulge_left, bulge_right = curve_bulge(ref, s, vehicle)
-    straight = lane_bounds(ref, lane, s, half_width=0.5 * vehicle.width, margin=margin)
-    turned = lane_bounds(ref, lane, s, half_width=0.0, margin=margin)
-    # The footprint turned by the heading error with its corners bulging out of curves; where that
-    # does not fit, without the bulge; where that does not fit either, aligned with the lane; where
-    # that does not fit, without the margin. A lane narrower than the vehicle itself cannot be driven:
-    # the road is blocked there (or ends, as where a lane's width falls to zero at its last point).
-    tight = lane_bounds(ref, lane, s, half_width=0.5 * vehicle.width, margin=0.0)
-    narrow = tight.lower > tight.upper - 1e-9
-    lower = np.where(narrow, np.inf, tight.lower)
-    upper = np.where(narrow, -np.inf, tight.upper)
-    fits = straight.lower < straight.upper
-    lower, upper = np.where(fits, straight.lower, lower), np.where(fits, straight.upper, upper)
-    for extra_right, extra_left in ((0.0, 0.0), (bulge_right, bulge_left)):
-        lo = turned.lower + half_extent + extra_right
-        up = turned.upper - half_extent - extra_left
-        fits = lo <= up
-        lower, upper = np.where(fits, lo, lower), np.where(fits, up, upper)
     half_l, half_w = 0.5 * vehicle.length, 0.5 * vehicle.width
-    if boxes.count:
+    bulge_left, bulge_right = curve_bulge(ref, s, vehicle)
+
+    def obstacle_edges(right: FloatArray | float, left: FloatArray | float) -> tuple[FloatArray, FloatArray]:
+        """Lower and upper bound from the obstacles, for footprint half-extents ``right`` and ``left``."""
+        if not boxes.count:
+            return np.full(s.shape, -np.inf), np.full(s.shape, np.inf)
         overlaps = (s[:, None] + half_l + margin >= boxes.s_min) & (
             s[:, None] - half_l - margin <= boxes.s_max
         )
-        left_edge = np.where(overlaps & left_of, boxes.d_max + half_w + margin, -np.inf)
-        right_edge = np.where(overlaps & ~left_of, boxes.d_min - half_w - margin, np.inf)
-        lower = np.maximum(lower, left_edge.max(axis=1))
-        upper = np.minimum(upper, right_edge.min(axis=1))
+        right_col = np.broadcast_to(right, s.shape)[:, None]
+        left_col = np.broadcast_to(left, s.shape)[:, None]
+        left_edge = np.where(overlaps & left_of, boxes.d_max + right_col + margin, -np.inf)
+        right_edge = np.where(overlaps & ~left_of, boxes.d_min - left_col - margin, np.inf)
+        return left_edge.max(axis=1), right_edge.min(axis=1)
+
+    # The footprint aligned with the lane and clear of the obstacles by the margin: the least the bounds
+    # keep (where the lane leaves no room for the margin, it is dropped; a lane narrower than the vehicle
+    # itself cannot be driven: the road is blocked there, or ends, as where a lane's width falls to zero
+    # at its last point).
+    straight = lane_bounds(ref, lane, s, half_width=half_w, margin=margin)
+    tight = lane_bounds(ref, lane, s, half_width=half_w, margin=0.0)
+    narrow = tight.lower > tight.upper - 1e-9
+    fits = straight.lower < straight.upper
+    lower = np.where(narrow, np.inf, np.where(fits, straight.lower, tight.lower))
+    upper = np.where(narrow, -np.inf, np.where(fits, straight.upper, tight.upper))
+    obs_lower, obs_upper = obstacle_edges(half_w, half_w)
+    lower, upper = np.maximum(lower, obs_lower), np.minimum(upper, obs_upper)
+    # Then, wherever it fits with all of the above: the footprint turned by the heading error, and
+    # then also with its corners bulging out of curves (towards the lane's edge and the obstacles on
+    # the outside alike).
+    turned = lane_bounds(ref, lane, s, half_width=0.0, margin=margin)
+    for extra_right, extra_left in ((0.0, 0.0), (bulge_right, bulge_left)):
+        right, left = half_extent + extra_right, half_extent + extra_left
+        obs_lo, obs_up = obstacle_edges(right, left)
+        lo = np.maximum(turned.lower + right, obs_lo)
+        up = np.minimum(turned.upper - left, obs_up)
+        fits = (lo <= up) & ~narrow
+        lower, upper = np.where(fits, lo, lower), np.where(fits, up, upper)
+    k_lower, k_upper = _turning_limits(ref, lane, s, vehicle)
+    # Last, the turning limit: where the lane leaves no room within it, the road is blocked for this
+    # vehicle (a turn tighter than it can drive in the lane).
+    lower, upper = np.maximum(lower, k_lower), np.minimum(upper, k_upper)
+    blocked_at = np.flatnonzero(lower > upper)
+    blocked = int(blocked_at[0]) if blocked_at.size else None
+    return LateralBounds(s=s, lower=lower, upper=upper, blocked=blocked)
+
+
+def _turning_limits(
+    ref: ReferenceLine, lane: Lane, s: FloatArray, vehicle: Vehicle
+) -> tuple[FloatArray, FloatArray]:
+    """The κ·d bound in its vehicle-feasible form, as ``(lower, upper)`` on d [m] at knots ``s``.
+
+    ``1 − κ d ≥ |κ|/κ_max  ⇔  d ≤ 1/κ − 1/κ_max`` (κ > 0), ``d ≥ 1/κ + 1/κ_max`` (κ < 0): the path keeps a
+    radius of at least ``1/κ_max``; ``∓inf`` where the reference is straight. Written so, it stays finite for
+    any ``κ_max > 0`` (the quotient form overflowed for a tiny one). Beyond the lane (a vehicle that cannot
+    turn that tightly) the knot is blocked whether the bound is a metre outside or 10³⁰⁰ m: it is kept
+    within ``BEYOND_LANE`` of the edge, a number the lateral QP can still take as a bound.
+    """
     kappa = ref.kappa_at(s)
-    # 1 − κ d ≥ |κ|/κ_max  ⇔  κ d ≤ 1 − |κ|/κ_max  ⇔  d ≤ 1/κ − 1/κ_max (κ > 0), d ≥ 1/κ + 1/κ_max
-    # (κ < 0): the path keeps a radius of at least 1/κ_max. Written so, it stays finite for any κ_max > 0 (the
-    # quotient form overflowed for a tiny one). Beyond the lane (a vehicle that cannot turn that
-    # tightly) the knot is blocked whether the bound is a metre outside or 10³⁰⁰ m: it is kept within
-    # BEYOND_LANE of the edge, a number the lateral QP can still take as a bound.
     curved = np.abs(kappa) > 1e-9
     radius = 1.0 / np.where(curved, kappa, 1.0)
     limit = np.where(curved, radius - np.sign(kappa) / vehicle.max_curvature, 0.0)
     lane_left = widths_at(lane.left_width, ref, s, field_name="lane.left_width")
     lane_right = widths_at(lane.right_width, ref, s, field_name="lane.right_width")
     limit = np.clip(limit, -lane_right - BEYOND_LANE, lane_left + BEYOND_LANE)
-    upper = np.where(kappa > 1e-9, np.minimum(upper, limit), upper)
-    lower = np.where(kappa < -1e-9, np.maximum(lower, limit), lower)
-    blocked_at = np.flatnonzero(lower > upper)
-    blocked = int(blocked_at[0]) if blocked_at.size else None
-    return LateralBounds(s=s, lower=lower, upper=upper, blocked=blocked)
+    return np.where(kappa < -1e-9, limit, -np.inf), np.where(kappa > 1e-9, limit, np.inf)

@@ -264,3 +264,25 @@ def test_huge_and_far_obstacles_cost_only_what_lies_near_the_road(monkeypatch: p
     result = _checked(replace(base, obstacles=(wall,)))
     assert result.status == "stopped"
     assert 0 < sum(mapped) < 500  # 2 × 2 m + 2 × (2 · 10 m corridor) of outline at 0.25 m steps
+
+
+@pytest.mark.parametrize(
+    ("x", "y", "heading", "speed", "acceleration", "curvature"),
+    [
+        # two states of the closed-loop demo entering the U-turn, where the optimised path grazed the cone
+        (-5.7092, 0.3659, 0.0631, 5.4344, -0.9384, 0.00435),
+        (-3.7513, 0.4966, 0.0701, 4.4174, -1.7045, 0.00485),
+    ],
+)
+def test_an_obstacle_on_the_outside_of_a_curve_is_cleared_by_the_bulging_corners(
+    x: float, y: float, heading: float, speed: float, acceleration: float, curvature: float
+) -> None:
+    """In a curve the footprint's outer corners stick out by the sagitta; the obstacle's bound keeps it.
+
+    Regression: the lane bounds kept the bulge but the obstacles' did not, so the optimised path hit
+    the demo's cone on the outside of the U-turn by a few millimetres and the answer was a braking
+    fallback.
+    """
+    ego = Ego(x=x, y=y, heading=heading, speed=speed, acceleration=acceleration, curvature=curvature)
+    result = _checked(replace(demo_problem(), ego=ego))
+    assert result.status == "ok", result.message

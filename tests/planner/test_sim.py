@@ -259,8 +259,8 @@ def test_transf_kappa_drives_the_u_turn() -> None:
     reason="the planner checks a footprint turned with the path; a car referenced midway between its "
     "axles is yawed by the slip angle (≈ 10° here), which swings its outer front corner ~0.4 m into the cone",
 )
-def test_a_car_referenced_midway_between_its_axles_drives_the_u_turn() -> None:
-    problem = _short_demo()
+def test_a_car_referenced_midway_between_its_axles_drives_the_demo_u_turn() -> None:
+    problem = demo_problem()
     result = simulate(problem, model=BicycleModel.for_vehicle(problem.vehicle, centre_midway=True))
     assert result.metrics.termination == "goal"
     assert result.metrics.collisions == 0
