@@ -120,15 +120,11 @@ def ego_frenet(ref: ReferenceLine, ego: Ego, *, max_curvature: float = np.inf) -
     curvature ``κ_x``, ``d″ = −(κ′d + κd′)·tan Δθ + (1 − κd)/cos²Δθ · (κ_x(1 − κd)/cos Δθ − κ)``.
     When ``κ_x`` is not given, the ego is taken to follow the road's curvature at its offset,
     ``κ/(1 − κd)``, limited to ``±max_curvature`` [1/m] (what it can be driving at its speed).
+    Nothing is refused here: :func:`check_ego_on_road` judges the position and then the heading.
     """
     fr = to_frenet(ref, [[ego.x, ego.y]])
     s, d = float(fr.s[0]), float(fr.d[0])
     err = float(np.angle(np.exp(1j * (ego.heading - ref.heading_at(s)))))
-    if abs(err) > MAX_EGO_HEADING_ERROR:
-        raise InvalidInputError(
-            f"points {np.degrees(err):.0f}° away from the reference line's driving direction",
-            field="ego.heading",
-        )
     kappa = float(ref.kappa_at(s))
     one = 1.0 - kappa * d
     dd = one * np.tan(err)
@@ -149,7 +145,8 @@ def ego_frenet(ref: ReferenceLine, ego: Ego, *, max_curvature: float = np.inf) -
 
 
 def check_ego_on_road(ref: ReferenceLine, lane: Lane, start: EgoFrenet) -> None:
-    """Refuse an ego farther than :data:`MAX_EGO_OFF_ROAD` [m] outside the lane or before the start."""
+    """Refuse an ego farther than :data:`MAX_EGO_OFF_ROAD` [m] outside the lane or before the start, then
+    one heading more than :data:`MAX_EGO_HEADING_ERROR` [rad] away from the reference's direction."""
     left = float(widths_at(lane.left_width, ref, start.s, field_name="lane.left_width"))
     right = float(widths_at(lane.right_width, ref, start.s, field_name="lane.right_width"))
     outside = max(start.d - left, -right - start.d, 0.0)
@@ -162,6 +159,13 @@ def check_ego_on_road(ref: ReferenceLine, lane: Lane, start: EgoFrenet) -> None:
             f"is {-start.s:.1f} m before the start of the reference line "
             f"(at most {MAX_EGO_OFF_ROAD:.0f} m is accepted)",
             field="ego",
+        )
+    # the heading only once the position is known to be near the road (far off, the nearest point's
+    # direction says nothing)
+    if abs(start.heading_error) > MAX_EGO_HEADING_ERROR:
+        raise InvalidInputError(
+            f"points {np.degrees(start.heading_error):.0f}° away from the reference line's driving direction",
+            field="ego.heading",
         )
 
 

@@ -216,3 +216,12 @@ def test_own_offset_bounds_are_the_lane_where_nothing_else_is_near(
     limits = _consistent_offsets(ref, s_row, bounds, separation=0.9)
     np.testing.assert_array_equal(limits.upper_own, bounds.upper)
     np.testing.assert_array_equal(limits.lower_own, bounds.lower)
+
+
+@pytest.mark.parametrize("heading", [0.0, np.pi])
+def test_an_ego_far_away_is_refused_for_its_position_whatever_its_heading(heading: float) -> None:
+    """Far from the road the nearest point's direction means nothing: the position is the problem."""
+    ref = build_reference(straight(100.0))
+    with pytest.raises(InvalidInputError, match="outside the lane") as err:
+        generate_candidates(ref, Lane(3.0, 3.0), Ego(x=50.0, y=1e5, heading=heading), Vehicle(), Options())
+    assert err.value.field == "ego"
