@@ -4,10 +4,15 @@ The HTTP layer (`app/`) validates a request and converts it into a :class:`Plann
 planner never sees JSON. Units: metres [m], seconds [s], radians [rad], metres per second [m/s].
 A trajectory point is the vehicle's geometric centre; ``heading`` is counter-clockwise from +x.
 
-A :class:`Vehicle` checks its fields when it is built and a :class:`PlanningProblem` checks its
-obstacles; what they refuse raises :class:`~planner.errors.InvalidInputError` naming the field
-(``vehicle.max_deceleration``, ``obstacles.2.circle.radius``). Everything they accept the planner
-handles: a vanishing obstacle is a point, a braking distance too long to matter is capped.
+Every dataclass here checks its fields when it is built (:class:`Ego`, :class:`Lane`,
+:class:`Vehicle`, :class:`Options`), and a :class:`PlanningProblem` checks its obstacles and that
+per-point lane widths match the reference line; what they refuse raises
+:class:`~planner.errors.InvalidInputError` naming the field as the JSON request does
+(``ego.speed``, ``lane.left_width.3``, ``vehicle.max_deceleration``, ``options.dt``,
+``obstacles.2.circle.radius``). Everything they accept the planner handles: a vanishing obstacle is a
+point, a braking distance too long to matter is capped. The ranges accepted include every request the
+HTTP API (``app.schemas``) accepts, and every state the simulator (``planner.sim``) reaches. The
+reference line's points are checked by :func:`~planner.reference.build_reference`, when planning.
 """
 
 from __future__ import annotations
@@ -15,11 +20,11 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 import numpy as np
 
-from planner.errors import InvalidInputError
+from planner.errors import InvalidInputError, InvalidReferenceError
 from planner.reference import FloatArray
 
 Generator = Literal["naive", "transf_kappa"]
@@ -60,16 +65,42 @@ Obstacle = PolygonObstacle | CircleObstacle | DynamicObstacle
 
 @dataclass(frozen=True)
 class Lane:
-    """Lane bounds: width to the left and right of the reference [m]; scalar or one per input point."""
+    """Lane bounds: width to the left and right of the reference [m]; scalar or one per input point.
+
+    A width is a number in ``[0, MAX_SIZE]``, or a 1-D array of them (stored as a float array), one per
+    point of the reference line (the :class:`PlanningProblem` checks the count).
+
+    Raises:
+        InvalidInputError: naming the field (``lane.left_width``, ``lane.right_width.3``).
+    """
 
     left_width: float | FloatArray
     right_width: float | FloatArray
+
+    def __post_init__(self) -> None:
+        for name in ("left_width", "right_width"):
+            value = getattr(self, name)
+            width = _width(value, f"lane.{name}")
+            if width is not value:
+                object.__setattr__(self, name, width)
 
 
 @dataclass(frozen=True)
 class Ego:
     """The vehicle's current state: centre position [m], heading [rad], speed [m/s], acceleration
-    [m/s²] and, if known, path curvature [1/m]."""
+    [m/s²] and, if known, path curvature [1/m].
+
+    Every field must be finite (``curvature`` may be ``None``). ``speed`` is at most
+    :data:`MAX_EGO_SPEED`; a speed just below zero, down to ``-STANDSTILL_TOLERANCE``, is a standstill
+    measured with noise or integrated with rounding and is stored as 0 (the planner drives forwards
+    only). ``|acceleration|`` is at most :data:`MAX_ACCELERATION`, ``|curvature|`` at most
+    :data:`MAX_EGO_CURVATURE`. Position and heading have no bound here: the planner refuses an ego far
+    from the road (``ego``) or pointing away from it (``ego.heading``). The checks are a few float
+    comparisons (the simulator builds an ego at every step).
+
+    Raises:
+        InvalidInputError: naming the field (``ego.speed``).
+    """
 
     x: float
     y: float
@@ -77,6 +108,23 @@ class Ego:
     speed: float = 0.0
     acceleration: float = 0.0
     curvature: float | None = None
+
+    def __post_init__(self) -> None:
+        _number(self.x, "ego.x")
+        _number(self.y, "ego.y")
+        _number(self.heading, "ego.heading")
+        speed = _number(self.speed, "ego.speed")
+        if not -STANDSTILL_TOLERANCE <= speed <= MAX_EGO_SPEED:
+            raise InvalidInputError(
+                f"must be between 0 and {MAX_EGO_SPEED:g} m/s (the planner drives forwards)",
+                field="ego.speed",
+            )
+        if speed < 0.0:
+            object.__setattr__(self, "speed", 0.0)
+        if abs(_number(self.acceleration, "ego.acceleration")) > MAX_ACCELERATION:
+            raise InvalidInputError(f"must be between ±{MAX_ACCELERATION:g} m/s²", field="ego.acceleration")
+        if self.curvature is not None and abs(_number(self.curvature, "ego.curvature")) > MAX_EGO_CURVATURE:
+            raise InvalidInputError(f"must be between ±{MAX_EGO_CURVATURE:g} 1/m", field="ego.curvature")
 
 
 #: the smallest positive normal float; an acceleration or curvature limit below it is a denormal
@@ -90,6 +138,21 @@ MAX_SIZE = 1e8
 #: largest acceleration limit [m/s²]: about 1000 g, which no vehicle's tyres transmit nor occupants
 #: survive (road vehicles reach about 1 g); far beyond it the speed profile's braking terms overflow
 MAX_ACCELERATION = 1e4
+#: a negative ego speed down to minus this [m/s] is a standstill (sensor noise, rounding), taken as 0
+STANDSTILL_TOLERANCE = 1e-3
+#: largest ego speed [m/s]: the speed of light; far beyond it (≈ 10¹⁵⁴) the squares of speeds overflow
+MAX_EGO_SPEED = 3e8
+#: largest |ego curvature| [1/m]: a turning radius of a nanometre, no vehicle's; far beyond it the lateral
+#: QP's start constraint leaves the range a QP solver accepts (OSQP: 10³⁰)
+MAX_EGO_CURVATURE = 1e9
+#: longest planning horizon [s] (ten minutes; the path is capped at 20 km anyway)
+MAX_HORIZON_TIME = 600.0
+#: shortest trajectory sampling step [s] (a millisecond)
+MIN_DT = 1e-3
+#: most trajectory points of one plan (``horizon_time / dt``): a bound on the work one plan asks for
+MAX_TRAJECTORY_POINTS = 20_000
+#: most points per candidate, and over all candidates (``num_candidates × num_points``)
+MAX_NUM_POINTS, MAX_CANDIDATE_POINTS = 10_000, 1_000_000
 #: the fields of :class:`Vehicle` with an upper bound, and the bound
 _VEHICLE_MAXIMA = {
     "length": MAX_SIZE,
@@ -108,6 +171,42 @@ def _number(value: Any, where: str) -> float:
     if not math.isfinite(number):
         raise InvalidInputError("must be finite", field=where)
     return number
+
+
+def _integer(value: Any, where: str, minimum: int) -> int:
+    """``value`` as an int of at least ``minimum``, or :class:`InvalidInputError` naming ``where``."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise InvalidInputError("must be an integer", field=where)
+    if value < minimum:
+        raise InvalidInputError(f"must be at least {minimum}", field=where)
+    return int(value)
+
+
+def _width(value: Any, where: str) -> float | FloatArray:
+    """A lane width [m] in ``[0, MAX_SIZE]``, or a 1-D float array of them (``value`` itself when it is
+    one already); a bad value of an array is named by its index (``lane.left_width.3``)."""
+    if isinstance(value, int | float | np.integer | np.floating | bool | str | bytes):
+        width = _number(value, where)
+        if not 0.0 <= width <= MAX_SIZE:
+            raise InvalidInputError(f"must be between 0 and {MAX_SIZE:g} m", field=where)
+        return width
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError("must be a number or an array of numbers", field=where) from None
+    if arr.ndim == 0:
+        return _width(float(arr), where)
+    if arr.ndim != 1:
+        raise InvalidInputError(
+            f"must be a number or one number per reference point, not {arr.shape}", field=where
+        )
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise InvalidInputError("must be finite", field=f"{where}.{bad[0]}")
+    bad = np.flatnonzero((arr < 0.0) | (arr > MAX_SIZE))
+    if bad.size:
+        raise InvalidInputError(f"must be between 0 and {MAX_SIZE:g} m", field=f"{where}.{bad[0]}")
+    return arr
 
 
 @dataclass(frozen=True)
@@ -167,6 +266,16 @@ class Options:
         min_path_length: shortest path the candidates cover [m].
         time_budget_ms: wall-clock budget of one plan [ms]; a stage that ends past it makes the answer
             a braking ``fallback`` saying so. ``None``: no budget.
+
+    Ranges: ``0 < horizon_time ≤ MAX_HORIZON_TIME``; ``MIN_DT ≤ dt ≤ MAX_HORIZON_TIME`` with at most
+    :data:`MAX_TRAJECTORY_POINTS` steps ``horizon_time / dt`` (a ``dt`` longer than the horizon gives a
+    single point); ``target_speed`` and ``min_path_length`` finite and ≥ 0 (the planner caps them at
+    the vehicle's speed and its longest path); ``0 ≤ lateral_margin ≤ MAX_SIZE``; ``num_candidates ≥ 1``,
+    ``2 ≤ num_points ≤ MAX_NUM_POINTS`` and ``num_candidates × num_points ≤ MAX_CANDIDATE_POINTS``;
+    ``seed ≥ 0``; ``time_budget_ms`` positive.
+
+    Raises:
+        InvalidInputError: naming the field (``options.dt``).
     """
 
     horizon_time: float = 8.0
@@ -180,6 +289,48 @@ class Options:
     lateral_margin: float = 0.2
     min_path_length: float = 20.0
     time_budget_ms: float | None = None
+
+    def __post_init__(self) -> None:
+        horizon = _number(self.horizon_time, "options.horizon_time")
+        if not 0.0 < horizon <= MAX_HORIZON_TIME:
+            raise InvalidInputError(
+                f"must be positive and at most {MAX_HORIZON_TIME:g} s", field="options.horizon_time"
+            )
+        dt = _number(self.dt, "options.dt")
+        if not MIN_DT <= dt <= MAX_HORIZON_TIME:
+            raise InvalidInputError(
+                f"must be between {MIN_DT:g} and {MAX_HORIZON_TIME:g} s", field="options.dt"
+            )
+        if horizon / dt > MAX_TRAJECTORY_POINTS:
+            raise InvalidInputError(
+                f"horizon_time / dt = {horizon / dt:.0f} trajectory steps; at most {MAX_TRAJECTORY_POINTS}",
+                field="options.dt",
+            )
+        for name in ("target_speed", "lateral_margin", "min_path_length"):
+            value = getattr(self, name)
+            if value is not None and not _number(value, f"options.{name}") >= 0.0:
+                raise InvalidInputError("must be at least 0", field=f"options.{name}")
+        if self.lateral_margin > MAX_SIZE:  # far beyond, the lateral QP's bounds leave OSQP's range (10³⁰)
+            raise InvalidInputError(f"must be at most {MAX_SIZE:g} m", field="options.lateral_margin")
+        candidates = _integer(self.num_candidates, "options.num_candidates", 1)
+        points = _integer(self.num_points, "options.num_points", 2)
+        if points > MAX_NUM_POINTS:
+            raise InvalidInputError(f"must be at most {MAX_NUM_POINTS}", field="options.num_points")
+        if candidates * points > MAX_CANDIDATE_POINTS:
+            raise InvalidInputError(
+                f"num_candidates × num_points = {candidates * points}; at most {MAX_CANDIDATE_POINTS}",
+                field="options.num_points",
+            )
+        if not isinstance(self.generator, str) or self.generator not in get_args(Generator):
+            raise InvalidInputError(
+                f"must be one of {', '.join(get_args(Generator))}", field="options.generator"
+            )
+        _integer(self.seed, "options.seed", 0)
+        if not isinstance(self.return_candidates, bool | np.bool_):
+            raise InvalidInputError("must be true or false", field="options.return_candidates")
+        budget = self.time_budget_ms
+        if budget is not None and not _number(budget, "options.time_budget_ms") > 0.0:
+            raise InvalidInputError("must be positive", field="options.time_budget_ms")
 
 
 @dataclass(frozen=True)
@@ -195,9 +346,25 @@ class PlanningProblem:
     options: Options = field(default_factory=Options)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "reference_line", np.asarray(self.reference_line, dtype=float))
-        if not isinstance(self.vehicle, Vehicle):
-            raise InvalidInputError("must be a Vehicle", field="vehicle")
+        try:
+            reference = np.asarray(self.reference_line, dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidReferenceError(
+                "must be a list of [x, y] pairs of numbers", field="reference_line"
+            ) from None
+        object.__setattr__(self, "reference_line", reference)
+        for name, kind in (("lane", Lane), ("ego", Ego), ("vehicle", Vehicle), ("options", Options)):
+            if not isinstance(getattr(self, name), kind):
+                raise InvalidInputError(f"must be a {kind.__name__}", field=name)
+        if reference.ndim == 2:  # any other shape is build_reference's to refuse
+            for name in ("left_width", "right_width"):
+                width = getattr(self.lane, name)
+                if isinstance(width, np.ndarray) and width.shape[0] != reference.shape[0]:
+                    raise InvalidInputError(
+                        f"has {width.shape[0]} values but reference_line has {reference.shape[0]} points; "
+                        "give one width per reference point or a single number",
+                        field=f"lane.{name}",
+                    )
         obstacles = tuple(_checked_obstacle(ob, i) for i, ob in enumerate(self.obstacles))
         object.__setattr__(self, "obstacles", obstacles)
 

@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
-from planner.errors import InvalidReferenceError
+from planner.errors import InvalidInputError, InvalidReferenceError
 
 FloatArray = NDArray[np.float64]
 
@@ -311,10 +311,15 @@ def widths_at(width: float | ArrayLike, ref: ReferenceLine, s: ArrayLike, *, fie
     """Lane width [m] at arc lengths ``s``: a scalar, or one value per input point interpolated by s.
 
     ``width`` given per point has one value per point of the user's original polyline (duplicates
-    included); values of dropped duplicates are ignored.
+    included); values of dropped duplicates are ignored. Too few of them (or not a 1-D array) raise
+    :class:`InvalidInputError` naming ``field_name``.
     """
     s_arr = np.asarray(s, dtype=float)
     w = np.asarray(width, dtype=float)
     if w.ndim == 0:
         return np.full(s_arr.shape, float(w))
+    if w.ndim != 1 or w.shape[0] <= ref.input_index[-1]:
+        raise InvalidInputError(
+            f"has shape {w.shape}: give one width per reference point or a single number", field=field_name
+        )
     return np.interp(s_arr, ref.input_s, w[ref.input_index])

@@ -10,13 +10,16 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
+from typing import Any
 
+import annotated_types
 import numpy as np
 import pytest
 import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from app import schemas
 from planner.bounds import BEYOND_LANE, lateral_bounds
 from planner.candidates import MAX_PATH_LENGTH, CandidateSet, generate_candidates, path_length
 from planner.collision import frenet_boxes, obstacle_shape
@@ -25,8 +28,16 @@ from planner.frenet import to_frenet
 from planner.pipeline import PlanResult, plan, static_shapes
 from planner.problem import (
     MAX_ACCELERATION,
+    MAX_CANDIDATE_POINTS,
+    MAX_EGO_CURVATURE,
+    MAX_EGO_SPEED,
+    MAX_HORIZON_TIME,
+    MAX_NUM_POINTS,
     MAX_SIZE,
+    MAX_TRAJECTORY_POINTS,
+    MIN_DT,
     SMALLEST_LIMIT,
+    STANDSTILL_TOLERANCE,
     CircleObstacle,
     DynamicObstacle,
     Ego,
@@ -68,7 +79,8 @@ def _planned(problem: PlanningProblem) -> PlanResult:
     assert result.status in ("ok", "stopped", "fallback")
     assert result.message
     traj = result.trajectory
-    assert traj.size >= 2
+    # a step longer than the horizon samples the start alone (the API accepts horizon 0.01 s, dt 1 s)
+    assert traj.size >= (1 if problem.options.dt > problem.options.horizon_time else 2)
     for name in _TRAJECTORY_FIELDS:
         values = getattr(traj, name)
         assert values.shape == (traj.size,), name
@@ -330,5 +342,318 @@ def extreme_problems(draw: st.DrawFn) -> PlanningProblem:
 @settings(max_examples=30, deadline=None)
 @given(problem=extreme_problems())
 def test_extreme_accepted_limits_and_sizes_plan(problem: PlanningProblem) -> None:
+    _planned(problem)
+    _candidates(problem)
+
+
+# --------------------------------------------------------------------------------------------------
+# Ego, lane, options and reference line: every field checked
+# --------------------------------------------------------------------------------------------------
+
+NAN, INF = float("nan"), float("inf")
+#: points of the demo's reference line (one lane width each, when given per point)
+_DEMO_POINTS = demo_problem().reference_line.shape[0]
+
+
+def _ego(**fields: Any) -> Callable[[], PlanningProblem]:
+    def make() -> PlanningProblem:
+        base = demo_problem()
+        return replace(base, ego=replace(base.ego, **fields))
+
+    return make
+
+
+def _options(**fields: Any) -> Callable[[], PlanningProblem]:
+    def make() -> PlanningProblem:
+        base = demo_problem()
+        return replace(base, options=replace(base.options, **fields))
+
+    return make
+
+
+def _lane(**widths: Any) -> Callable[[], PlanningProblem]:
+    def make() -> PlanningProblem:
+        base = demo_problem()
+        return replace(base, lane=replace(base.lane, **widths))
+
+    return make
+
+
+def _widths(*edits: tuple[int, float], count: int = _DEMO_POINTS) -> np.ndarray:
+    """3.5 m per reference point, with ``(index, value)`` edits."""
+    widths = np.full(count, 3.5)
+    for index, value in edits:
+        widths[index] = value
+    return widths
+
+
+def _reference(points: Any) -> Callable[[], PlanningProblem]:
+    return lambda: replace(demo_problem(), reference_line=points)
+
+
+INPUTS = [
+    # the ego: finite, a forward speed, accelerations and curvatures no vehicle exceeds (NaN went
+    # into the k-d tree, the QP's d_ref or the speed solver; 1e300 m/s overflowed v²)
+    *(
+        pytest.param(_ego(**{k: v}), f"ego.{k}", id=f"ego.{k}={v}")
+        for k in ("x", "y", "heading")
+        for v in (NAN, INF)
+    ),
+    pytest.param(_ego(x="1"), "ego.x", id="ego.x-string"),
+    pytest.param(_ego(heading=-INF), "ego.heading", id="ego.heading=-inf"),
+    pytest.param(_ego(speed=NAN), "ego.speed", id="ego.speed=nan"),
+    pytest.param(_ego(speed=INF), "ego.speed", id="ego.speed=inf"),
+    pytest.param(_ego(speed=-1.0), "ego.speed", id="ego.speed=-1"),
+    pytest.param(_ego(speed=1e300), "ego.speed", id="ego.speed=1e300"),
+    pytest.param(_ego(speed=np.nextafter(MAX_EGO_SPEED, INF)), "ego.speed", id="ego.speed-above-max"),
+    pytest.param(_ego(acceleration=NAN), "ego.acceleration", id="ego.acceleration=nan"),
+    pytest.param(_ego(acceleration=-1e300), "ego.acceleration", id="ego.acceleration=-1e300"),
+    pytest.param(_ego(curvature=NAN), "ego.curvature", id="ego.curvature=nan"),
+    pytest.param(_ego(curvature=INF), "ego.curvature", id="ego.curvature=inf"),
+    pytest.param(_ego(curvature=1e300), "ego.curvature", id="ego.curvature=1e300"),
+    # far off the road or pointing away: refused by the planner, which knows the road
+    pytest.param(_ego(x=1e300), "ego", id="ego.x=1e300"),
+    pytest.param(_ego(heading=1e300), "ego.heading", id="ego.heading=1e300"),
+    # what the simulator can produce plans: standstill, a rounding below it, any heading
+    pytest.param(_ego(speed=0.0), None, id="ego.speed=0"),
+    pytest.param(_ego(speed=-1e-12), None, id="ego.speed=-1e-12"),
+    pytest.param(_ego(speed=-STANDSTILL_TOLERANCE), None, id="ego.speed=-tolerance"),
+    pytest.param(_ego(heading=4.0 * np.pi), None, id="ego.heading=4pi"),
+    pytest.param(_ego(speed=MAX_EGO_SPEED, acceleration=MAX_ACCELERATION), None, id="ego-fastest"),
+    pytest.param(_ego(acceleration=-MAX_ACCELERATION, curvature=MAX_EGO_CURVATURE), None, id="ego-sharpest"),
+    pytest.param(_ego(curvature=-MAX_EGO_CURVATURE), None, id="ego.curvature=-max"),
+    # options (dt = 0 divided by zero, NaN could not be rounded, 1e-9 s asked for 60 GiB, 0 candidates
+    # or points had nothing to reduce or index, a negative seed or num_points reached numpy)
+    *(pytest.param(_options(dt=v), "options.dt", id=f"options.dt={v}") for v in (0.0, -0.1, NAN, INF, 1e-9)),
+    pytest.param(_options(dt=np.nextafter(MAX_HORIZON_TIME, INF)), "options.dt", id="options.dt-above-max"),
+    pytest.param(_options(horizon_time=600.0, dt=0.01), "options.dt", id="options.dt-too-many-steps"),
+    *(
+        pytest.param(_options(horizon_time=v), "options.horizon_time", id=f"options.horizon_time={v}")
+        for v in (0.0, -1.0, NAN, INF, 1e6)
+    ),
+    *(
+        pytest.param(_options(target_speed=v), "options.target_speed", id=f"options.target_speed={v}")
+        for v in (-1.0, NAN, INF)
+    ),
+    *(
+        pytest.param(_options(num_candidates=v), "options.num_candidates", id=f"options.num_candidates={v!r}")
+        for v in (0, -1, 1.5, True, np.float64(32.0))
+    ),
+    *(
+        pytest.param(_options(num_points=v), "options.num_points", id=f"options.num_points={v!r}")
+        for v in (0, 1, -5, 2.5, MAX_NUM_POINTS + 1)
+    ),
+    pytest.param(
+        _options(num_candidates=MAX_CANDIDATE_POINTS // 100 + 1, num_points=100),
+        "options.num_points",
+        id="options-too-many-candidate-points",
+    ),
+    *(
+        pytest.param(_options(**{k: v}), f"options.{k}", id=f"options.{k}={v}")
+        for k in ("lateral_margin", "min_path_length")
+        for v in (-1.0, NAN, INF)
+    ),
+    pytest.param(_options(lateral_margin=1e300), "options.lateral_margin", id="options.lateral_margin=1e300"),
+    *(
+        pytest.param(_options(time_budget_ms=v), "options.time_budget_ms", id=f"options.time_budget_ms={v}")
+        for v in (0.0, -1.0, NAN)
+    ),
+    pytest.param(_options(seed=-1), "options.seed", id="options.seed=-1"),
+    pytest.param(_options(seed=1.5), "options.seed", id="options.seed=1.5"),
+    pytest.param(_options(generator="spline"), "options.generator", id="options.generator=spline"),
+    pytest.param(
+        _options(return_candidates="yes"), "options.return_candidates", id="options.return_candidates"
+    ),
+    # extreme options that plan
+    pytest.param(_options(dt=MIN_DT, horizon_time=MIN_DT * MAX_TRAJECTORY_POINTS), None, id="options-finest"),
+    pytest.param(_options(dt=1.0, horizon_time=0.01), None, id="options.dt-above-horizon"),
+    pytest.param(_options(horizon_time=DENORMAL), None, id="options.horizon_time=denormal"),
+    pytest.param(_options(num_candidates=1, num_points=2), None, id="options-fewest-candidates"),
+    pytest.param(
+        _options(target_speed=0.0, lateral_margin=MAX_SIZE, min_path_length=1e300), None, id="options-huge"
+    ),
+    pytest.param(_options(seed=2**70, time_budget_ms=1e300), None, id="options.seed=2**70"),
+    # lane widths: a number in [0, MAX_SIZE] or one per reference point (NaN made NaN offsets, a short
+    # array an IndexError, a long one was silently cut, a negative one made a lane of negative width)
+    *(
+        pytest.param(_lane(**{k: v}), f"lane.{k}", id=f"lane.{k}={v}")
+        for k in ("left_width", "right_width")
+        for v in (NAN, INF, -1.0, 2 * MAX_SIZE)
+    ),
+    pytest.param(_lane(left_width="3.5"), "lane.left_width", id="lane.left_width-string"),
+    pytest.param(_lane(left_width=_widths(count=_DEMO_POINTS - 1)), "lane.left_width", id="lane-too-few"),
+    pytest.param(_lane(left_width=_widths(count=_DEMO_POINTS + 1)), "lane.left_width", id="lane-too-many"),
+    pytest.param(_lane(right_width=np.zeros(0)), "lane.right_width", id="lane-empty"),
+    pytest.param(_lane(left_width=np.full((_DEMO_POINTS, 2), 3.5)), "lane.left_width", id="lane-2d"),
+    pytest.param(_lane(left_width=_widths((3, NAN))), "lane.left_width.3", id="lane.left_width.3=nan"),
+    pytest.param(_lane(left_width=_widths((3, -1.0))), "lane.left_width.3", id="lane.left_width.3=-1"),
+    pytest.param(
+        _lane(right_width=_widths((2, INF), (7, -1.0))), "lane.right_width.2", id="lane.right_width.2=inf"
+    ),
+    pytest.param(
+        _lane(left_width=_widths((5, 2 * MAX_SIZE))), "lane.left_width.5", id="lane.left_width.5-huge"
+    ),
+    pytest.param(_lane(left_width=list(_widths())), None, id="lane-list"),
+    pytest.param(_lane(left_width=np.zeros(_DEMO_POINTS), right_width=0.0), None, id="lane-zero"),
+    pytest.param(_lane(left_width=MAX_SIZE), None, id="lane-widest"),
+    # the reference line: refused by the problem (not numbers) or by build_reference when planning
+    pytest.param(_reference("abc"), "reference_line", id="reference-string"),
+    pytest.param(_reference([[0.0, 0.0], [1.0, NAN], [2.0, 0.0]]), "reference_line.1", id="reference-nan"),
+    pytest.param(_reference([[0.0, 0.0]]), "reference_line", id="reference-one-point"),
+    pytest.param(_reference(np.zeros((5, 3))), "reference_line", id="reference-3-columns"),
+]
+
+
+@pytest.mark.parametrize(("make", "field"), INPUTS)
+def test_a_bad_input_is_refused_naming_its_field_or_plans(
+    make: Callable[[], PlanningProblem], field: str | None
+) -> None:
+    if field is not None:
+        with pytest.raises(InvalidInputError) as err:
+            _planned(make())
+        assert err.value.field == field
+        return
+    problem = make()
+    _planned(problem)
+    _candidates(problem)
+
+
+def test_a_speed_rounded_below_standstill_is_standstill() -> None:
+    assert Ego(x=0.0, y=0.0, heading=0.0, speed=-1e-12).speed == 0.0
+    assert Ego(x=0.0, y=0.0, heading=0.0, speed=-STANDSTILL_TOLERANCE).speed == 0.0
+    with pytest.raises(InvalidInputError, match="forwards"):
+        Ego(x=0.0, y=0.0, heading=0.0, speed=np.nextafter(-STANDSTILL_TOLERANCE, -INF))
+
+
+def test_lane_widths_are_stored_as_float_arrays() -> None:
+    lane = Lane([3, 4, 5], np.int64(2))  # type: ignore[arg-type]
+    assert isinstance(lane.left_width, np.ndarray) and lane.left_width.dtype == np.float64
+    assert lane.right_width == 2.0
+    widths = np.array([3.0, 4.0])
+    assert Lane(widths, widths).left_width is widths
+
+
+def test_candidates_refuse_a_lane_not_matching_the_reference() -> None:
+    """Called without a :class:`PlanningProblem` (which checks the count), a short lane is refused
+    by the width lookup rather than indexed past its end."""
+    problem = demo_problem()
+    ref = build_reference(problem.reference_line)
+    for count in (_DEMO_POINTS - 1, 0):
+        lane = Lane(_widths(count=count), 3.5)
+        with pytest.raises(InvalidInputError) as err:
+            generate_candidates(ref, lane, problem.ego, problem.vehicle, problem.options)
+        assert err.value.field == "lane.left_width"
+
+
+@pytest.mark.parametrize(
+    ("name", "kind"), [("lane", Lane), ("ego", Ego), ("vehicle", Vehicle), ("options", Options)]
+)
+def test_a_problem_refuses_a_part_of_the_wrong_type(name: str, kind: type) -> None:
+    wrong: dict[str, Any] = {name: object()}
+    with pytest.raises(InvalidInputError, match=kind.__name__) as err:
+        replace(demo_problem(), **wrong)
+    assert err.value.field == name
+
+
+# --------------------------------------------------------------------------------------------------
+# Never stricter than the API: every bound of its request plans
+# --------------------------------------------------------------------------------------------------
+
+
+def _api_bounds() -> list[Any]:
+    """One case per bound of a numeric field of the API's ego, vehicle and options (and the lane
+    widths): ``(section, field, value)``, the value at the bound (just inside it for ``gt``)."""
+    cases = []
+    for section, model in (("ego", schemas.Ego), ("vehicle", schemas.Vehicle), ("options", schemas.Options)):
+        for name, info in model.model_fields.items():
+            for meta in info.metadata:
+                if isinstance(meta, annotated_types.Gt):
+                    value: Any = np.nextafter(float(meta.gt), INF)  # type: ignore[arg-type]
+                elif isinstance(meta, annotated_types.Ge | annotated_types.Le):
+                    value = meta.ge if isinstance(meta, annotated_types.Ge) else meta.le
+                else:
+                    continue
+                cases.append(pytest.param(section, name, value, id=f"{section}.{name}={value}"))
+    for value in (0.0, schemas.MAX_WIDTH):
+        cases.append(pytest.param("lane", "left_width", value, id=f"lane.left_width={value}"))
+        cases.append(
+            pytest.param("lane", "right_width", [value] * _DEMO_POINTS, id=f"lane.right_width=[{value}]")
+        )
+    return cases
+
+
+@pytest.mark.parametrize(("section", "name", "value"), _api_bounds())
+def test_every_bound_the_api_accepts_the_library_accepts(section: str, name: str, value: Any) -> None:
+    body = schemas.from_problem(demo_problem()).model_dump()
+    body[section][name] = value
+    problem = schemas.to_problem(schemas.PlanningRequest.model_validate(body))
+    if section == "ego" and name in ("x", "y", "heading"):
+        return  # the road judges a position or a heading: 10⁷ m off it is refused by the planner
+    _planned(problem)
+
+
+# --------------------------------------------------------------------------------------------------
+# Extreme but accepted options (and ego states)
+# --------------------------------------------------------------------------------------------------
+
+
+def _counts(low: int, high: int, *special: int) -> st.SearchStrategy[int]:
+    """Half the time an integer in ``[low, high]``, half the time ``low``, ``high`` or a ``special``."""
+    return st.one_of(st.sampled_from([low, high, *special]), st.integers(low, high))
+
+
+@st.composite
+def extreme_options(draw: st.DrawFn) -> Options:
+    """Options from anywhere in the ranges :class:`Options` accepts."""
+    dt = draw(_log_uniform(MIN_DT, MAX_HORIZON_TIME, 0.02, 0.1, 1.0))
+    # just inside the bound on the steps (dt × MAX_TRAJECTORY_POINTS may round above it)
+    longest = min(MAX_HORIZON_TIME, dt * MAX_TRAJECTORY_POINTS * (1.0 - 1e-12))
+    horizon = draw(_log_uniform(SMALLEST_LIMIT, longest, DENORMAL, 8.0))
+    points = draw(_counts(2, MAX_NUM_POINTS, 100))
+    candidates = draw(_counts(1, MAX_CANDIDATE_POINTS // points, 32))
+    return Options(
+        horizon_time=horizon,
+        dt=dt,
+        target_speed=draw(st.one_of(st.none(), _log_uniform(SMALLEST_LIMIT, LARGEST, 0.0, 7.0))),
+        num_candidates=candidates,
+        num_points=points,
+        generator=draw(st.sampled_from(["naive", "transf_kappa"])),
+        seed=draw(st.integers(0, 2**64)),
+        return_candidates=draw(st.booleans()),
+        lateral_margin=draw(_log_uniform(SMALLEST_LIMIT, MAX_SIZE, 0.0, 0.2)),
+        min_path_length=draw(_log_uniform(SMALLEST_LIMIT, LARGEST, 0.0, 20.0)),
+        time_budget_ms=draw(st.one_of(st.none(), _log_uniform(SMALLEST_LIMIT, 1e6))),
+    )
+
+
+@st.composite
+def extreme_egos(draw: st.DrawFn) -> Ego:
+    """The demo's ego position with a speed, acceleration, curvature and heading from anywhere in the
+    ranges :class:`Ego` accepts (the heading within 80° of the road's, which is the +x axis there)."""
+    curvature = st.floats(-MAX_EGO_CURVATURE, MAX_EGO_CURVATURE)
+    return Ego(
+        x=-15.0,
+        y=draw(st.floats(-3.0, 3.0)),
+        heading=draw(st.floats(-1.4, 1.4)) + 2.0 * np.pi * draw(st.integers(-3, 3)),
+        speed=draw(_log_uniform(SMALLEST_LIMIT, MAX_EGO_SPEED, 0.0, -STANDSTILL_TOLERANCE, 5.0)),
+        acceleration=draw(st.floats(-MAX_ACCELERATION, MAX_ACCELERATION)),
+        curvature=draw(
+            st.one_of(st.none(), curvature, st.sampled_from([-MAX_EGO_CURVATURE, MAX_EGO_CURVATURE]))
+        ),
+    )
+
+
+@settings(max_examples=25, deadline=None)
+@given(options=extreme_options())
+def test_extreme_accepted_options_plan(options: Options) -> None:
+    problem = replace(demo_problem(), options=options)
+    _planned(problem)
+    _candidates(problem)
+
+
+@settings(max_examples=25, deadline=None)
+@given(ego=extreme_egos())
+def test_extreme_accepted_ego_states_plan(ego: Ego) -> None:
+    problem = replace(demo_problem(), ego=ego)
     _planned(problem)
     _candidates(problem)
