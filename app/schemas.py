@@ -338,8 +338,8 @@ class Options(_Model):
 
     model_config = ConfigDict(
         json_schema_extra={
-            "description": "Planning options; num_candidates × num_points may not exceed "
-            f"{MAX_TOTAL_CANDIDATE_POINTS} (the size of the candidates' answer)."
+            "description": "Planning options; dt may not exceed horizon_time, and num_candidates × "
+            f"num_points may not exceed {MAX_TOTAL_CANDIDATE_POINTS} (the size of the candidates' answer)."
         }
     )
 
@@ -381,6 +381,14 @@ class Options(_Model):
 
     @model_validator(mode="after")
     def _answer_size(self) -> Options:
+        if self.dt > self.horizon_time:
+            raise field_error(
+                ("dt",),
+                "dt_above_horizon",
+                f"dt = {self.dt} s is longer than horizon_time = {self.horizon_time} s: the trajectory "
+                "would be its start alone",
+                self.dt,
+            )
         total = self.num_candidates * self.num_points
         if total > MAX_TOTAL_CANDIDATE_POINTS:
             raise field_error(

@@ -201,6 +201,13 @@ def test_answer_size_limit(client: TestClient, demo: dict[str, Any]) -> None:
     _expect(_post(client, demo), 422, "invalid_request", "options.num_points")
 
 
+def test_a_step_longer_than_the_horizon_is_refused(client: TestClient, demo: dict[str, Any]) -> None:
+    demo["options"].update(horizon_time=0.5, dt=1.0)
+    _expect(_post(client, demo), 422, "invalid_request", "options.dt")
+    demo["options"].update(horizon_time=1.0, dt=1.0)
+    assert _post(client, demo).status_code == 200
+
+
 def test_many_problems_are_capped(client: TestClient) -> None:
     r = _post(client, {"reference_line": [["a", "b"]] * 500, "points": [[0, 0]]}, "/v1/frenet")
     assert r.status_code == 422

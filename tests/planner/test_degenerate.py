@@ -18,6 +18,7 @@ import pytest
 import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from pydantic import ValidationError
 
 from app import schemas
 from planner.bounds import BEYOND_LANE, lateral_bounds
@@ -586,6 +587,10 @@ def _api_bounds() -> list[Any]:
 def test_every_bound_the_api_accepts_the_library_accepts(section: str, name: str, value: Any) -> None:
     body = schemas.from_problem(demo_problem()).model_dump()
     body[section][name] = value
+    if body["options"]["dt"] > body["options"]["horizon_time"]:  # refused as a whole by the API
+        with pytest.raises(ValidationError, match=r"options\.dt"):
+            schemas.PlanningRequest.model_validate(body)
+        return
     problem = schemas.to_problem(schemas.PlanningRequest.model_validate(body))
     if section == "ego" and name in ("x", "y", "heading"):
         return  # the road judges a position or a heading: 10⁷ m off it is refused by the planner
