@@ -12,9 +12,11 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Literal
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 from scipy.ndimage import minimum_filter1d
 from scipy.spatial import cKDTree
@@ -46,7 +48,14 @@ from planner.trajectory import Path, Trajectory, frenet_path, polyline_path, sam
 from planner.validation import trajectory_violations
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
 from solvers.result import SolveInfo, SolverStatus
-from solvers.speed import SpeedProblem, SpeedResult, SpeedSolver, braking_profile, integrate_jerk
+from solvers.speed import (
+    SpeedProblem,
+    SpeedResult,
+    SpeedSolver,
+    braking_profile,
+    cruise_profile,
+    integrate_jerk,
+)
 
 Status = Literal["ok", "stopped", "fallback"]
 
@@ -66,6 +75,13 @@ QP_MAX_ITER = 4000
 EMERGENCY_JERK = 30.0
 #: time headway kept to a moving obstacle ahead: the vehicle may not be where it was this long ago [s]
 HEADWAY = 1.0
+#: time headway kept ahead of a vehicle coming from behind: the vehicle should be ahead of where that one
+#: will be this much later [s] (a soft bound, weaker than the stop and the obstacles ahead). Half the
+#: headway kept to the obstacles ahead: the gap behind is the follower's to keep, ours is not to brake
+#: into it, and the two headways together must fit between a leader and a follower.
+FOLLOWER_HEADWAY = 0.5 * HEADWAY
+#: a vehicle behind's speed is its fastest mean over this long while it bounds the profile [s]
+FOLLOWER_WINDOW = 1.0
 #: jerk bound of the lateral profile [1/m²]
 LATERAL_JERK = 0.5
 #: jerk bound of the speed profile [m/s³]
@@ -253,12 +269,14 @@ def _lateral_qp(
     return solver.solve(problem, max_iter=QP_MAX_ITER, time_limit_s=time_limit_s)
 
 
-def _speed_limit(path: Path, problem: PlanningProblem) -> FloatArray:
+def _speed_limit(path: Path, problem: PlanningProblem, keep_up: float = 0.0) -> FloatArray:
+    """The speed profile's limit along ``path`` [m/s]: the target speed, or ``keep_up`` [m/s] where that is
+    higher (the speed of a vehicle behind to keep ahead of), within the vehicle's and the curvature's."""
     v = problem.vehicle
     target = (
         v.max_speed
         if problem.options.target_speed is None
-        else min(problem.options.target_speed, v.max_speed)
+        else min(max(problem.options.target_speed, keep_up), v.max_speed)
     )
     with np.errstate(divide="ignore"):
         lateral = np.sqrt(
@@ -319,6 +337,103 @@ def _space_time_bound(
     return np.asarray(limit.min(axis=0))
 
 
+def _frenet_extents(
+    ref: ReferenceLine, movers: list[DynamicObstacle], states: list[FloatArray]
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """``(s_min, s_max, d_min, d_max)`` [m], each shape (K, T): the Frenet boxes of the K obstacles at their
+    states ``states[k]`` (shape (T, 3)), from corners and edge midpoints mapped by TransF-κ in one call."""
+    outlines = []
+    for ob, st in zip(movers, states, strict=True):
+        corners = box_corners(st[:, 0], st[:, 1], st[:, 2], ob.length, ob.width)  # (T, 4, 2)
+        outlines.append(np.concatenate((corners, 0.5 * (corners + np.roll(corners, -1, axis=1))), axis=1))
+    pts = np.stack(outlines)  # (K, T, 8, 2)
+    fr = to_frenet(ref, pts.reshape(-1, 2))
+    s_box = fr.s.reshape(pts.shape[:3])
+    d_box = fr.d.reshape(pts.shape[:3])
+    return s_box.min(axis=2), s_box.max(axis=2), d_box.min(axis=2), d_box.max(axis=2)
+
+
+def _behind(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float) -> NDArray[np.bool_]:
+    """Which of ``movers`` are behind the ego at the start: the middle of their Frenet box at ``t = 0`` at
+    or behind the ego's ``start_s`` [m] — exactly those :func:`_space_time_bound` does not follow."""
+    if not movers:
+        return np.zeros(0, dtype=bool)
+    s_min, s_max, _, _ = _frenet_extents(ref, movers, [prediction_at(ob, np.zeros(1)) for ob in movers])
+    ahead = (0.5 * (s_min[:, 0] + s_max[:, 0]) > start_s) | (s_min[:, 0] > start_s)
+    return np.asarray(~ahead, dtype=bool)
+
+
+def followers(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float) -> list[DynamicObstacle]:
+    """The moving obstacles behind the ego at the start (see :func:`_behind`)."""
+    return [ob for ob, behind in zip(movers, _behind(ref, movers, start_s), strict=True) if behind]
+
+
+def _follower_bound(
+    ref: ReferenceLine,
+    path: Path,
+    movers: list[DynamicObstacle],
+    problem: PlanningProblem,
+    t: FloatArray,
+    headway: float,
+    start_s: float,
+) -> tuple[FloatArray | None, float]:
+    """``σ_min(t_k)`` [m] at the knot times ``t`` (evenly spaced) [s]: how far along the path the
+    vehicle's centre must be for its footprint to be ahead of the boxes of the moving obstacles behind it
+    at the start (:func:`followers`) at every time in ``[t_k, t_k + headway]`` (``headway`` [s] rounded up
+    to the knot spacing); ``−inf`` where free, ``None`` when free throughout. Also returns the fastest such
+    vehicle's speed along the reference while it bounds [m/s] (0 if none).
+
+    A vehicle bounds from the first time its box meets the footprint anywhere along the path, if it is
+    then behind where the ego would be at its current speed, and for as long as it keeps meeting it:
+    one that enters the path ahead (a cut-in after overtaking) or comes back after leaving it is not
+    chased. At each time the bound is the knot after the last one whose footprint it meets.
+    """
+    if not movers:
+        return None, 0.0
+    window = int(np.ceil(headway / float(t[1] - t[0]) - 1e-9))  # steps of the headway; t: ≥ 2 times
+    t = t[0] + (t[1] - t[0]) * np.arange(t.size + window)  # the knots and the headway beyond them
+    half_s, half_d = vehicle_extent(np.zeros_like(path.s), problem.vehicle, OBSTACLE_MARGIN)
+    # as in _space_time_bound: map by TransF-κ only the obstacles that come near the path
+    tree = cKDTree(np.column_stack((path.x, path.y)))
+    own = float(np.hypot(half_s[0], half_d[0]))
+    states = [prediction_at(ob, t) for ob in movers]
+    reach = 2.0 * (own + max(float(np.hypot(ob.length, ob.width)) for ob in movers)) + KNOT_SPACING
+    dist, _ = tree.query(np.concatenate(states)[:, :2], distance_upper_bound=reach)
+    near = np.flatnonzero(np.isfinite(dist).reshape(len(movers), -1).any(axis=1))
+    chosen = near[_behind(ref, [movers[k] for k in near], start_s)]
+    if chosen.size == 0:
+        return None, 0.0
+    s_min, s_max, d_min, d_max = _frenet_extents(
+        ref, [movers[k] for k in chosen], [states[k] for k in chosen]
+    )
+    ps, pd = path.s[None, None, :], path.d[None, None, :]
+    hit = (ps + half_s >= s_min[..., None]) & (ps - half_s <= s_max[..., None])
+    hit &= (pd + half_d >= d_min[..., None]) & (pd - half_d <= d_max[..., None])  # (K, T, knots)
+    meets = hit.any(axis=2)  # (K, T)
+    first = np.argmax(meets, axis=1)
+    rows = np.arange(meets.shape[0])
+    behind_then = s_max[rows, first] <= start_s + max(problem.ego.speed, 0.0) * t[first]
+    after = np.arange(meets.shape[1])[None, :] >= first[:, None]
+    active = meets & ~(np.cumsum(after & ~meets, axis=1) > 0) & behind_then[:, None]  # the first run only
+    if not active.any():
+        return None, 0.0
+    last = hit.shape[2] - 1 - np.argmax(hit[..., ::-1], axis=2)  # last knot met, (K, T)
+    at = np.where(active, path.sigma[np.minimum(last + 1, hit.shape[2] - 1)], -np.inf).max(axis=0)
+    bound = sliding_window_view(at, window + 1).max(axis=1)  # the most ahead over each [t_k, t_k + headway]
+    # Their speed: the fastest mean over FOLLOWER_WINDOW while bounding (a prediction ends held, so a
+    # mean over the whole horizon would be too low), or over the whole time bounding when shorter.
+    w = int(np.clip(round(FOLLOWER_WINDOW / float(t[1] - t[0])), 1, t.size - 1))  # t: ≥ 2 times
+    windows = active[:, w:] & active[:, :-w]  # both ends in the one run: all of it
+    rates = (s_max[:, w:] - s_max[:, :-w]) / (t[w:] - t[:-w])
+    speed = float(np.max(np.where(windows & np.isfinite(rates), rates, 0.0), initial=0.0))
+    start_k, end_k = np.argmax(active, axis=1), active.shape[1] - 1 - np.argmax(active[:, ::-1], axis=1)
+    short = active.any(axis=1) & ~windows.any(axis=1) & (end_k > start_k)
+    if short.any():
+        mean = (s_max[rows, end_k] - s_max[rows, start_k]) / (t[end_k] - t[start_k] + 1e-12)
+        speed = max(speed, float(np.max(np.where(short & np.isfinite(mean), mean, 0.0))))
+    return np.asarray(bound), speed
+
+
 def _speed(
     solver: SpeedSolver,
     path: Path,
@@ -328,6 +443,8 @@ def _speed(
     steps: int,
     dt: float,
     jerk_max: float = SPEED_JERK,
+    s_lower: FloatArray | None = None,
+    keep_up: float = 0.0,
 ) -> SpeedResult:
     v = problem.vehicle
     ego = problem.ego
@@ -336,7 +453,7 @@ def _speed(
         if problem.options.target_speed is None
         else min(problem.options.target_speed, v.max_speed)
     )
-    limit = _speed_limit(path, problem)
+    limit = _speed_limit(path, problem, keep_up)
     sp = SpeedProblem(
         dt=dt,
         steps=steps,
@@ -350,12 +467,17 @@ def _speed(
         jerk_max=jerk_max,
         s_stop=s_stop,
         s_upper=s_upper,
+        s_lower=s_lower,
     )
     return solver.solve(sp)
 
 
-def _braking(path: Path, problem: PlanningProblem, steps: int, dt: float) -> SpeedResult:
-    """Full braking within the jerk limit along ``path`` (the fallback's speed profile)."""
+def _braking(
+    path: Path, problem: PlanningProblem, steps: int, dt: float, keep_speed: bool = False
+) -> SpeedResult:
+    """Full braking within the jerk limit along ``path`` (the fallback's speed profile); with
+    ``keep_speed``, the acceleration released as fast and the speed kept instead (the fallback's
+    alternative when braking is hit from behind)."""
     v = problem.vehicle
     sp = SpeedProblem(
         dt=dt,
@@ -369,10 +491,10 @@ def _braking(path: Path, problem: PlanningProblem, steps: int, dt: float) -> Spe
         a_max=v.max_acceleration,
         jerk_max=EMERGENCY_JERK,
     )
-    jerk = braking_profile(sp)
+    jerk = cruise_profile(sp) if keep_speed else braking_profile(sp)
     s, vel, a = integrate_jerk(dt, 0.0, sp.v0, sp.a0, jerk)
     t = np.arange(steps + 1, dtype=np.float64) * dt
-    info = SolveInfo(SolverStatus.SOLVED, 0, 0.0, None, "braking profile")
+    info = SolveInfo(SolverStatus.SOLVED, 0, 0.0, None, "cruise profile" if keep_speed else "braking profile")
     return SpeedResult(
         info=info,
         t=t,
@@ -432,7 +554,9 @@ def plan(problem: PlanningProblem) -> PlanResult:
     steps = int(min(SPEED_STEPS, max(1, round(options.horizon_time / options.dt))))
     dt_speed = options.horizon_time / steps
 
-    def fallback(reason: str, path: Path, lateral: SolveInfo, speed: SolveInfo) -> PlanResult:
+    def fallback(
+        reason: str, path: Path, lateral: SolveInfo, speed: SolveInfo, planned: SpeedResult | None = None
+    ) -> PlanResult:
         # Brake along the first path whose braking trajectory passes every check: the optimised one,
         # the longer uncut candidate, or straight on at the ego's offset (no steering while it stops).
         knots_ahead = _knots(start, max(float(s_c[-1]), start.s + 2.0 * KNOT_SPACING))
@@ -447,8 +571,37 @@ def plan(problem: PlanningProblem) -> PlanResult:
             if not bad:
                 break
         traj, bad = min(tried, key=lambda tb: len(tb[1]))
-        diag = PlanDiagnostics(stats, lateral, speed, _total(timer), ref.size, knot_count, best)
         message = reason if not bad else f"{reason}; the braking trajectory still breaks: {bad[0]}"
+        if bad:
+            # Full braking into a vehicle coming from behind is never better than keeping the speed:
+            # when braking is hit from behind, keeping the speed and the planned profile (which may have
+            # slowed for a leader's headway only) are weighed too. The first that passes every check is
+            # taken; else the least severe (_severity), on a tie these before braking (a harder stop
+            # gives the follower less time).
+            rear = {
+                f"footprint hits moving obstacle {ob.id}"
+                for ob in followers(ref, moving_obstacles(problem), start.s)
+            }
+            hit_from_behind = [v for _, b in tried for v in b if v in rear]
+            if hit_from_behind:
+                others = [("the planned profile", planned)] if planned is not None and planned.info.ok else []
+                others.append(
+                    ("keeping the speed", _braking(path, problem, steps, dt_speed, keep_speed=True))
+                )
+                weighed = []
+                for label, prof in others:
+                    alt = sample(path, prof.t, prof.s - prof.s[0], prof.v, prof.a, prof.jerk, options.dt)
+                    alt_bad = trajectory_violations(ref, problem, alt, shapes)
+                    weighed.append((label, alt, alt_bad))
+                    if not alt_bad:
+                        break
+                weighed += [("braking", tr, b) for tr, b in tried]
+                label, traj, bad = min(weighed, key=lambda c: _severity(c[2], rear))
+                if label != "braking":
+                    message = f"{reason}; braking is hit from behind ({hit_from_behind[0]}): {label} instead"
+                    if bad:
+                        message += f", which still breaks: {bad[0]}"
+        diag = PlanDiagnostics(stats, lateral, speed, _total(timer), ref.size, knot_count, best)
         return PlanResult(
             "fallback", message, traj, cands if options.return_candidates else None, diag, tuple(bad)
         )
@@ -521,15 +674,24 @@ def plan(problem: PlanningProblem) -> PlanResult:
         t_knots = np.arange(steps + 1, dtype=np.float64) * dt_speed
         # Where an obstacle was HEADWAY ago, not where it is: a gap that grows with its speed.
         t_seen = np.maximum(t_knots - HEADWAY, 0.0)
-        s_upper = _space_time_bound(ref, path, moving_obstacles(problem), problem, t_seen, start.s)
+        movers = moving_obstacles(problem)
+        s_upper = _space_time_bound(ref, path, movers, problem, t_seen, start.s)
         if s_upper is not None:
             s_upper = np.maximum(s_upper - STOP_GAP, 0.0)
+        # Mirrored for the vehicles behind: wherever they will be within FOLLOWER_HEADWAY. A soft bound that
+        # gives way to the stop and to the obstacles ahead; the target speed gives way to theirs.
+        s_lower, keep_up = _follower_bound(ref, path, movers, problem, t_knots, FOLLOWER_HEADWAY, start.s)
+        if s_lower is not None:
+            s_lower = s_lower + STOP_GAP
+        solve = partial(_speed, solvers.speed, path, problem, s_stop, s_upper, steps, dt_speed)
         jerk = EMERGENCY_JERK if blocked is not None and not road_end else SPEED_JERK
-        speed = _speed(solvers.speed, path, problem, s_stop, s_upper, steps, dt_speed, jerk)
-        if speed.max_violation > SPEED_SLACK and jerk < EMERGENCY_JERK:
+        speed = solve(jerk, s_lower, keep_up)
+        if max(speed.speed_violation, speed.position_violation) > SPEED_SLACK and jerk < EMERGENCY_JERK:
             # The comfortable jerk cannot slow down in time (a curve or an obstacle close ahead):
-            # safety before comfort, brake as hard as the emergency jerk allows.
-            speed = _speed(solvers.speed, path, problem, s_stop, s_upper, steps, dt_speed, EMERGENCY_JERK)
+            # safety before comfort, brake as hard as the emergency jerk allows. (Not for a follower
+            # bound alone: more jerk hardly speeds up sooner.)
+            speed = solve(EMERGENCY_JERK, s_lower, keep_up)
+        planned = speed
         if speed.info.ok and speed.position_violation > POSITION_SLACK:
             # Past a stop or a space-time bound (the solver's limits are soft): full braking keeps every
             # s(t) as small as the limits allow, so it is the answer here (no creeping up to a block).
@@ -542,17 +704,42 @@ def plan(problem: PlanningProblem) -> PlanResult:
     with timer.stage("trajectory"):
         traj = sample(path, speed.t, speed.s - speed.s[0], speed.v, speed.a, speed.jerk, options.dt)
         bad = trajectory_violations(ref, problem, traj, shapes)
+        if bad and planned is not speed:
+            # Full braking for a bound the plan overshot breaks a check (it is hit from behind): the plan
+            # itself, if it passes every check, is the better answer.
+            kept = sample(
+                path, planned.t, planned.s - planned.s[0], planned.v, planned.a, planned.jerk, options.dt
+            )
+            if not trajectory_violations(ref, problem, kept, shapes):
+                note += (
+                    f" (up to {planned.position_violation:.2f} m past a stop or an obstacle's headway:"
+                    f" braking breaks a check, {bad[0]})"
+                )
+                speed, traj, bad = planned, kept, []
     if bad:
-        return fallback(f"the optimised trajectory breaks a check: {bad[0]}", path, qp.info, speed.info)
+        # A follower's bound may have given way to a stop or a leader: the fallback then also weighs
+        # keeping speed and this profile against braking into the follower.
+        return fallback(
+            f"the optimised trajectory breaks a check: {bad[0]}", path, qp.info, speed.info, planned
+        )
     status: Status = "stopped" if blocked is not None and not road_end else "ok"
     if road_end:
         message = f"planned; the lane ends {bounds.s[-1] - start.s:.1f} m ahead{note}"
     elif blocked is not None:
         message = f"the road is blocked {bounds.s[-1] - start.s:.1f} m ahead; stopping before it{note}"
     else:
-        message = "planned"
+        message = f"planned{note}"
     diag = PlanDiagnostics(stats, qp.info, speed.info, _total(timer), ref.size, int(bounds.s.shape[0]), best)
     return PlanResult(status, message, traj, cands if options.return_candidates else None, diag)
+
+
+def _severity(bad: list[str], rear: set[str]) -> tuple[int, int, int]:
+    """How bad a trajectory's failed checks ``bad`` are, to compare fallbacks: hits of obstacles other
+    than the vehicles behind (``rear``, as the checks word them), then hits from behind, then the other
+    checks (curvature, lane, …, which do not hit anything by themselves)."""
+    hits = [b for b in bad if b.startswith("footprint hits ")]
+    from_behind = sum(b in rear for b in hits)
+    return len(hits) - from_behind, from_behind, len(bad) - len(hits)
 
 
 def _total(timer: _Timer) -> dict[str, float]:

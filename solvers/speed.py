@@ -28,14 +28,17 @@ reported). Likewise ``v ≥ 0`` (no reversing) gives way only where ``a0 < 0`` m
 release profile), so every QP is feasible. The half-step row keeps a stopped vehicle stopped: with ``v ≥ 0``
 at the knots only, an alternating ``a = ±ε`` would let it creep backwards between them.
 
-Soft constraints, ``k = 1 … N``, with slacks ``σᵛ_k ≥ 0`` [m/s] and ``σˢ_k ≥ 0`` [m]::
+Soft constraints, ``k = 1 … N``, with slacks ``σᵛ_k ≥ 0`` [m/s], ``σˢ_k ≥ 0`` [m] and ``σˡ_k ≥ 0`` [m]::
 
     v_k ≤ v_lim(s_k) + σᵛ_k      (k < N)        path speed limit
     v_N ≤ v_end(s_N) + σᵛ_N                      … at the horizon's end, with room to brake beyond it
     s_k ≤ s_bound,k + σˢ_k,      s_bound,k = min(s_stop, s_upper,k)
+    s_k ≥ s_lower,k − σˡ_k                       (only where s_lower,k is finite)
 
 ``v_lim`` is the piecewise-linear interpolant of ``(limit_s, limit_v)``, constant beyond both ends (the caller
-computes it as ``min(max_speed, target, √(a_lat,max/|κ(s)|))``); ``s_upper`` is optional (``+∞`` where free).
+computes it as ``min(max_speed, target, √(a_lat,max/|κ(s)|))``); ``s_upper`` is optional (``+∞`` where free),
+and so is ``s_lower`` (``−∞`` where free): a lower space-time bound, such as staying ahead of a vehicle that
+comes from behind.
 ``v_end`` makes ``s_stop`` hold for all time, lets the next plan slow down for limits beyond the horizon
 and keeps the vehicle able to stay behind ``s_upper`` continued at its final rate
 ``u = max(0, (s_upper,N − s_upper,N−1)/Δt)``. With ``b = −a_min/2`` and ``c = b²/(2 j_max)``::
@@ -50,7 +53,7 @@ Constraints at ``k = 0`` are not imposed: the initial state is a measurement.
 Cost (``w·`` and ``ρ·`` are the fields of :class:`SpeedWeights`)::
 
     J = Σ_{k=1}^{N} Δt [w_speed (v_k − v_target)² + w_acc a_k²] + Σ_{k=0}^{N−1} Δt w_jerk j_k²
-      + Σ_{k=1}^{N} [ρ_v (σᵛ_k + σᵛ_k²/100) + ρ_s (σˢ_k + σˢ_k²/100)]
+      + Σ_{k=1}^{N} [ρ_v (σᵛ_k + σᵛ_k²/100) + ρ_s (σˢ_k + σˢ_k²/100) + ρ_l (σˡ_k + σˡ_k²/100)]
 
 The running terms are weighted by ``Δt`` (an integral over time), so the weights do not depend on the grid.
 The slack penalty is exact (ℓ1): when the soft constraints can be met, the optimum meets them exactly
@@ -58,7 +61,20 @@ The slack penalty is exact (ℓ1): when the soft constraints can be met, the opt
 to stop with ``a_min``, ``s_upper`` already behind the vehicle — the optimum is the physically best effort
 (full braking within the jerk limit) instead of an infeasible problem. The small quadratic part spreads an
 unavoidable violation instead of piling it up. :class:`SpeedResult` reports the violation of the returned
-profile, evaluated on ``v_lim``, ``v ≥ 0`` and ``s_bound`` themselves (``max_violation``).
+profile, evaluated on ``v_lim``, ``v ≥ 0``, ``s_bound`` and ``s_lower`` themselves.
+
+The two position bounds can conflict: ``s_lower,k > s_bound,k`` (a block or a leader ahead, a follower
+behind). The weights settle it. At such a knot the linear part of the penalty is
+``ρ_s (s_k − s_bound,k)₊ + ρ_l (s_lower,k − s_k)₊``, falling with slope ``ρ_l`` up to ``s_bound,k``, rising
+with ``ρ_s − ρ_l`` up to ``s_lower,k`` and with ``ρ_s`` beyond; with ``ρ_l < ρ_s`` its minimum is
+``s_k = s_bound,k``. So the upper bound is kept and the lower one gives way by ``s_lower,k − s_bound,k``,
+unless the rest of ``J`` pushes ``s_k`` forward by more than ``ρ_s − ρ_l`` per metre. The knots are coupled
+through the dynamics: where ``s_bound`` dips for a few knots, keeping it holds ``s`` back at the knots
+around the dip as well, and each of those can carry a lower-bound penalty, so ``ρ_s`` must exceed ``ρ_l``
+times the number of knots involved (the default ``ρ_s = 100 ρ_l`` does; a ratio of 10 let a
+staircase-shaped leader bound be overshot by 0.5 m). Likewise a speed excess ``δ`` over one step moves
+every later knot by ``δ·Δt``, so the speed limit outranks ``s_lower`` while ``ρ_v > ρ_l·N·Δt`` (default:
+10⁴ against 800 for 8 s).
 
 Solution method: sequential quadratic programming. The only nonlinearity is the speed limit. Iteration
 ``i`` replaces it, around the current profile ``s̄``, by a local model that is a minimum of affine pieces
@@ -80,23 +96,28 @@ Solution method: sequential quadratic programming. The only nonlinearity is the 
 The QP is solved with HPIPM, a structure-exploiting (Riccati) interior-point method, through CasADi's
 ``qpsol``. It is built once per ``(N, Δt, weights)`` with ``v_target``, the pieces' slopes and the end
 curvature as CasADi parameters and everything else as bounds, so nothing about its structure changes
-between requests (the limit profile may have any number of points; an unused piece gets an infinite
-bound). The step to the QP's solution is globalised by a backtracking line search on the exact penalty
-function (``J`` with the true violations as slacks); every trial is dynamically feasible, since the
-dynamics are linear and the boxes convex. The iteration stops when the model agrees with the limit at the
-QP's solution, wherever the speed is at the limit, to ``tolerance`` (100 × that at ``k = N``, a braking
-margin rather than a limit) — status ``solved`` — or after ``max_iterations`` QPs or a failed line search
-(``solved_inaccurate``: the best iterate, a valid profile whose violations are reported truthfully; it
-happens where a sharp convex kink of ``v_lim``, a V-shaped dip, has to be crossed by many knots, one or two
-per iteration). ``s̄`` starts from the previous solution shifted in time (warm start) or from a
-forward–backward pass of the limit along the path, timed (cold start). The problem is not convex, and at
-a sharp dip the SQP can end in a local minimum of the penalty function that violates the limit. So when
-the result violates a soft constraint although :func:`braking_profile` (a full stop) meets them all, the
-SQP runs once more from that stop and the better result is kept; if the violation remains, the status is
-``solved_inaccurate`` and the message says so. A QP that HPIPM stops early (iteration limit, minimum step)
-is used if its iterate is finite and within the boxes, never as ``solved``; otherwise, and if CasADi raises,
-the solve fails: status ``failed`` and the braking profile. The returned profile is re-integrated from the
-jerks with the formulas above, so it meets the dynamics to rounding error whatever the QP's accuracy.
+between requests (the limit profile may have any number of points; an unused piece gets an infinite bound).
+A problem whose ``s_lower`` is finite somewhere in ``k = 1 … N`` gets a second QP of that size, with ``σˡ``
+as a fourth input per stage and the row ``s_{k+1} + σˡ_{k+1} ≥ s_lower,k+1``; every other problem keeps the
+smaller one (one input and one row fewer per stage). The step to the QP's solution is globalised by a
+backtracking line search on the exact penalty function (``J`` with the true violations as slacks); every
+trial is dynamically feasible, since the dynamics are linear and the boxes convex. The iteration stops when
+the model agrees with the limit at the QP's solution, wherever the speed is at the limit, to ``tolerance``
+(100 × that at ``k = N``, a braking margin rather than a limit) — status ``solved`` — or after
+``max_iterations`` QPs or a failed line search (``solved_inaccurate``: the best iterate, a valid profile
+whose violations are reported truthfully; it happens where a sharp convex kink of ``v_lim``, a V-shaped
+dip, has to be crossed by many knots, one or two per iteration). ``s̄`` starts from the previous solution
+shifted in time (warm start) or from a forward–backward pass of the limit along the path, timed (cold
+start), raised to ``s_lower`` and then capped by ``s_bound`` (the upper bound wins there too). The problem
+is not convex, and at a sharp dip the SQP can end in a local minimum of the penalty function that violates
+the limit. So when the result violates the limit, ``v ≥ 0`` or ``s_bound`` although :func:`braking_profile`
+(a full stop) meets them (``s_lower`` aside: a full stop rarely keeps ahead of anything), the SQP runs once
+more from that stop and the result with the lower penalty function is kept; if the violation remains, the
+status is ``solved_inaccurate`` and the message says so. A QP that HPIPM stops early (iteration limit,
+minimum step) is used if its iterate is finite and within the boxes, never as ``solved``; otherwise, and if
+CasADi raises, the solve fails: status ``failed`` and the braking profile. The returned profile is
+re-integrated from the jerks with the formulas above, so it meets the dynamics to rounding error whatever
+the QP's accuracy.
 
 Internally ``s`` is measured from ``s0``, so the QP's numbers stay small wherever the path frame starts.
 What does not depend on the profile — the limit's segments and the model's pieces per segment, the
@@ -130,6 +151,7 @@ __all__ = [
     "SpeedSolver",
     "SpeedWeights",
     "braking_profile",
+    "cruise_profile",
     "end_speed_limit",
     "integrate_jerk",
     "objective",
@@ -176,7 +198,8 @@ _MERIT_SLACK = 1e-6
 _REPORTED_VIOLATION = 1e-6
 #: a violation above this is checked against a full stop, and the SQP restarted from it if that meets all
 _RESTORE_VIOLATION = 1e-4
-#: rows per stage: 3 dynamics, the half-step speed, the limit pieces, the position
+#: rows per stage: 3 dynamics, the half-step speed, the limit pieces, the position (and, in the QP with a
+#: lower bound, one more: the lower position row)
 _ROWS = 5 + _PIECES
 
 
@@ -195,12 +218,19 @@ class SpeedWeights:
     8 s: about 600): the defaults cover ``v_target·N·Δt`` up to a few thousand m. Raise them with the
     running weights or much longer horizons; ``max_violation`` shows when they were too low.
 
+    ``follower_violation`` is a hundredth of ``position_violation`` and far below ``speed_violation``:
+    where ``s_lower`` conflicts with ``s_bound`` or the limit, those win (module docstring). It is still
+    exact for ``s_lower`` alone: keeping one metre further ahead costs about ``2·speed·|v − v_target|`` of
+    running cost (a bound that holds the vehicle at 40 m/s against a target of 0: about 80).
+
     Attributes:
         speed: on ``Δt (v_k − v_target)²``.
         acceleration: on ``Δt a_k²``.
         jerk: on ``Δt j_k²``.
         speed_violation: ρ_v, on ``σᵛ_k + σᵛ_k²/100`` (``σᵛ`` in m/s).
         position_violation: ρ_s, on ``σˢ_k + σˢ_k²/100`` (``σˢ`` in m).
+        follower_violation: ρ_l, on ``σˡ_k + σˡ_k²/100`` (``σˡ`` in m); below ``position_violation`` for the
+            upper bound to win a conflict.
     """
 
     speed: float = 1.0
@@ -208,6 +238,7 @@ class SpeedWeights:
     jerk: float = 0.5
     speed_violation: float = 1e4
     position_violation: float = 1e4
+    follower_violation: float = 1e2
 
     def __post_init__(self) -> None:
         for name in self.__dataclass_fields__:
@@ -232,16 +263,20 @@ def _scalar(name: str, value: object, *, allow_posinf: bool = False) -> float:
     return result
 
 
-def _array(name: str, value: ArrayLike, *, allow_posinf: bool = False) -> FloatArray:
+def _array(
+    name: str, value: ArrayLike, *, allow_posinf: bool = False, allow_neginf: bool = False
+) -> FloatArray:
     try:
         array = np.array(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(f"{name}: must be an array of numbers") from None
     if array.ndim != 1:
         raise ValueError(f"{name}: expected a 1-D array, got shape {array.shape}")
-    bad = np.isnan(array) | np.isneginf(array)
+    bad = np.isnan(array)
     if not allow_posinf:
         bad |= np.isposinf(array)
+    if not allow_neginf:
+        bad |= np.isneginf(array)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise ValueError(f"{name}: invalid value {array[i]} at index {i}")
@@ -271,6 +306,9 @@ class SpeedProblem:
         s_stop: ``s(t) ≤ s_stop`` for all t [m] (a blocked point or the path's end); ``+inf``: none.
         s_upper: optional ``s(t_k) ≤ s_upper[k]`` [m], shape (N + 1,), ``+inf`` where free, no NaN or
             ``−inf`` (entry 0 is not imposed).
+        s_lower: optional ``s(t_k) ≥ s_lower[k]`` [m], shape (N + 1,), ``−inf`` where free, no NaN or
+            ``+inf`` (entry 0 is not imposed); softer than ``s_stop`` and ``s_upper`` where they conflict
+            (``weights.follower_violation``).
         weights: cost weights.
     """
 
@@ -287,6 +325,7 @@ class SpeedProblem:
     a0: float = 0.0
     s_stop: float = math.inf
     s_upper: FloatArray | None = None
+    s_lower: FloatArray | None = None
     weights: SpeedWeights = field(default_factory=SpeedWeights)
 
     def __post_init__(self) -> None:
@@ -334,6 +373,11 @@ class SpeedProblem:
             if s_upper.shape != (self.steps + 1,):
                 raise ValueError(f"s_upper: expected shape ({self.steps + 1},), got {s_upper.shape}")
             put("s_upper", s_upper)
+        if self.s_lower is not None:
+            s_lower = _array("s_lower", self.s_lower, allow_neginf=True)
+            if s_lower.shape != (self.steps + 1,):
+                raise ValueError(f"s_lower: expected shape ({self.steps + 1},), got {s_lower.shape}")
+            put("s_lower", s_lower)
         if not isinstance(self.weights, SpeedWeights):
             raise ValueError(f"weights: expected SpeedWeights, got {type(self.weights).__name__}")
 
@@ -395,6 +439,9 @@ class _Tables:
             the end [m²/s²]; so the minimum over ``s′ > s`` is ``end_min[searchsorted(end_s, s, "right")]``.
         s_bound: :meth:`SpeedProblem.s_bound`; ``bound_finite``: where it is finite; ``bound_or_zero``: it,
             0 where infinite.
+        lower: ``s_lower`` with entry 0 (not imposed) and a missing bound as ``−inf`` [m]; ``lower_finite``:
+            where it is finite; ``lower_or_zero``: it, 0 where infinite; ``has_lower``: whether it is finite
+            anywhere (the problem needs the QP with the ``σˡ`` slack).
         a_lo, a_hi: :meth:`SpeedProblem.accel_bounds`; v_lo, v_lo_half: :meth:`SpeedProblem.speed_floor`.
     """
 
@@ -411,6 +458,10 @@ class _Tables:
     s_bound: FloatArray
     bound_finite: NDArray[np.bool_]
     bound_or_zero: FloatArray
+    lower: FloatArray
+    lower_finite: NDArray[np.bool_]
+    lower_or_zero: FloatArray
+    has_lower: bool
     a_lo: FloatArray
     a_hi: FloatArray
     v_lo: FloatArray
@@ -466,6 +517,11 @@ class _Tables:
         s_bound = problem.s_bound()
         bound_finite = np.isfinite(s_bound)
         bound_or_zero = np.where(bound_finite, s_bound, 0.0)
+        lower = np.full(problem.steps + 1, -math.inf)
+        if problem.s_lower is not None:
+            lower[1:] = problem.s_lower[1:]
+        lower_finite = np.isfinite(lower)
+        lower_or_zero = np.where(lower_finite, lower, 0.0)
         a_lo, a_hi = problem.accel_bounds()
         v_lo, v_lo_half = problem.speed_floor()
         tables = _Tables(
@@ -482,6 +538,10 @@ class _Tables:
             s_bound=s_bound,
             bound_finite=bound_finite,
             bound_or_zero=bound_or_zero,
+            lower=lower,
+            lower_finite=lower_finite,
+            lower_or_zero=lower_or_zero,
+            has_lower=bool(lower_finite.any()),
             a_lo=a_lo,
             a_hi=a_hi,
             v_lo=v_lo,
@@ -508,8 +568,10 @@ class SpeedResult:
         jerk: jerk on each step [m/s³].
         speed_violation: largest ``max(v_k − v_lim(s_k), −v_k)`` over ``k ≥ 1``, or 0 [m/s].
         position_violation: largest ``s_k − min(s_stop, s_upper,k)`` over ``k ≥ 1``, or 0 [m].
-        max_violation: the larger of the two (each in its own unit): the slack the profile needed.
+        max_violation: the largest of the three violations (each in its own unit): the slack the profile
+            needed.
         qp_solves: QPs solved (SQP iterations).
+        follower_violation: largest ``s_lower,k − s_k`` over ``k ≥ 1``, or 0 [m].
     """
 
     info: SolveInfo
@@ -522,6 +584,7 @@ class SpeedResult:
     position_violation: float
     max_violation: float
     qp_solves: int
+    follower_violation: float = 0.0
 
     @property
     def ok(self) -> bool:
@@ -616,12 +679,15 @@ def integrate_jerk(
     return s, v, a
 
 
-def _violations(problem: SpeedProblem, s: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Per-knot violations ``(e_v, e_s)`` of ``v_lim``/``v ≥ 0`` and ``s_bound`` (0 at knot 0)."""
+def _violations(
+    problem: SpeedProblem, s: FloatArray, v: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Per-knot violations ``(e_v, e_s, e_l)`` of ``v_lim``/``v ≥ 0``, ``s_bound`` and ``s_lower`` (0 at
+    knot 0)."""
     limit = np.interp(s, problem.limit_s, problem.limit_v)
     e_v = np.maximum(np.maximum(v - limit, -v), 0.0)
     e_v[0] = 0.0
-    return e_v, _position_violations(problem, s)
+    return e_v, _position_violations(problem, s), _follower_violations(problem, s)
 
 
 def _position_violations(problem: SpeedProblem, s: FloatArray) -> FloatArray:
@@ -630,6 +696,14 @@ def _position_violations(problem: SpeedProblem, s: FloatArray) -> FloatArray:
     e_s = np.where(tables.bound_finite, np.maximum(s - tables.bound_or_zero, 0.0), 0.0)
     e_s[0] = 0.0
     return e_s
+
+
+def _follower_violations(problem: SpeedProblem, s: FloatArray) -> FloatArray:
+    """Per-knot violations of ``s_lower`` [m] (0 at knot 0 and where it is ``−inf``)."""
+    tables = problem._tables
+    if not tables.has_lower:
+        return np.zeros_like(s)
+    return np.where(tables.lower_finite, np.maximum(tables.lower_or_zero - s, 0.0), 0.0)
 
 
 def objective(problem: SpeedProblem, s: FloatArray, v: FloatArray, a: FloatArray, jerk: ArrayLike) -> float:
@@ -641,13 +715,16 @@ def objective(problem: SpeedProblem, s: FloatArray, v: FloatArray, a: FloatArray
     limit[-1] = end_speed_limit(problem, float(s[-1]))
     e_v = np.maximum(v[1:] - limit, 0.0)
     e_s = _position_violations(problem, s)
+    e_l = _follower_violations(problem, s)
     running = dt * (
         w.speed * np.sum((v[1:] - problem.v_target) ** 2)
         + w.acceleration * np.sum(a[1:] ** 2)
         + w.jerk * np.sum(jerk**2)
     )
-    penalty = w.speed_violation * np.sum(e_v + _QUADRATIC_SHARE * e_v**2) + w.position_violation * np.sum(
-        e_s + _QUADRATIC_SHARE * e_s**2
+    penalty = (
+        w.speed_violation * np.sum(e_v + _QUADRATIC_SHARE * e_v**2)
+        + w.position_violation * np.sum(e_s + _QUADRATIC_SHARE * e_s**2)
+        + w.follower_violation * np.sum(e_l + _QUADRATIC_SHARE * e_l**2)
     )
     return float(running + penalty)
 
@@ -713,6 +790,21 @@ def braking_profile(problem: SpeedProblem) -> FloatArray:
     return np.array(jerk + [0.0] * (n - len(jerk)), dtype=np.float64)
 
 
+def cruise_profile(problem: SpeedProblem) -> FloatArray:
+    """Jerks that keep the speed: ``a0`` back to 0 as fast as ``jerk_max`` allows, then constant speed.
+
+    Like :func:`braking_profile` it ignores every soft constraint. Where releasing a brake (``a0 < 0``)
+    would end below ``v = 0`` the vehicle stops instead: the result is then :func:`braking_profile`.
+    """
+    jerks, dv = _release(problem.a0, problem.dt, problem.jerk_max)
+    if problem.v0 + dv < 0.0:
+        return braking_profile(problem)
+    jerk = np.zeros(problem.steps)
+    head = jerks[: problem.steps]
+    jerk[: len(head)] = head
+    return jerk
+
+
 # --------------------------------------------------------------------------------------------------------
 # The QP, built once per (N, dt, weights)
 
@@ -723,22 +815,26 @@ class _QP:
     Fill ``p``, ``lbx``, ``ubx``, ``lbg`` and ``ubg`` in place (``slopes`` and ``limit_rows`` are views of
     ``p`` and ``ubg`` in the shape ``(_PIECES, N)`` of :func:`_local_model`), call :meth:`solve`, then read
     ``x`` and ``lam_g``: the next call overwrites them. The outputs the solver does not read are not
-    copied. The initial guesses are zero, as in a call without them.
+    copied. The initial guesses are zero, as in a call without them. ``width`` is the number of variables
+    per stage (3 states, then 3 inputs, or 4 with the lower bound's slack) and ``rows`` that of rows.
     """
 
-    def __init__(self, function: Any, steps: int) -> None:
+    def __init__(self, function: Any, steps: int, lower: bool = False) -> None:
         n = steps
+        self.width = 7 if lower else 6
+        self.rows = _ROWS + 1 if lower else _ROWS
+        width, rows = self.width, self.rows
         self.p = np.zeros(3 + _PIECES * n)
-        self.lbx = np.zeros(6 * n + 3)
-        self.ubx = np.zeros(6 * n + 3)
-        self.lbg = np.zeros(_ROWS * n)
-        self.ubg = np.zeros(_ROWS * n)
-        self.x = np.zeros(6 * n + 3)
-        self.lam_g = np.zeros(_ROWS * n)
+        self.lbx = np.zeros(width * n + 3)
+        self.ubx = np.zeros(width * n + 3)
+        self.lbg = np.zeros(rows * n)
+        self.ubg = np.zeros(rows * n)
+        self.x = np.zeros(width * n + 3)
+        self.lam_g = np.zeros(rows * n)
         self.slopes = self.p[3:].reshape(n, _PIECES).T
-        self.limit_rows = self.ubg.reshape(n, _ROWS).T[4 : 4 + _PIECES]
+        self.limit_rows = self.ubg.reshape(n, rows).T[4 : 4 + _PIECES]
         self._function = function
-        zero_x, zero_g = np.zeros(6 * n + 3), np.zeros(_ROWS * n)
+        zero_x, zero_g = np.zeros(width * n + 3), np.zeros(rows * n)
         inputs = {"p": self.p, "lbx": self.lbx, "ubx": self.ubx, "lbg": self.lbg, "ubg": self.ubg}
         inputs |= {"x0": zero_x, "lam_x0": zero_x, "lam_g0": zero_g}
         self._inputs = [(function.index_in(name), array.data) for name, array in inputs.items()]
@@ -769,18 +865,19 @@ class _QP:
         return int(stats.get("return_status", -1)), int(stats.get("iter_count", 0))
 
 
-def _build_qp(steps: int, dt: float, w: SpeedWeights, residual: float = 1e-7) -> _QP:
+def _build_qp(steps: int, dt: float, w: SpeedWeights, lower: bool = False, residual: float = 1e-7) -> _QP:
     """The CasADi/HPIPM QP in stage order ``z = [x_0, u_0, x_1, u_1, …, x_N]``.
 
     ``x_k = (s_k − s0, v_k, a_k)``, ``u_k = (j_k, σᵛ_{k+1}, σˢ_{k+1})``. Rows of stage ``k < N``: the three
-    dynamics rows ``f(x_k, u_k) − x_{k+1} = 0``, the half-step speed ``≥ v_lo``, then the two soft rows of
+    dynamics rows ``f(x_k, u_k) − x_{k+1} = 0``, the half-step speed ``≥ v_lo``, then the soft rows of
     knot ``k + 1`` written through the dynamics (so that they belong to stage ``k``): ``v − d·s − σᵛ ≤ ·``
-    (the linearised limit, slope ``d`` a parameter) and ``s − σˢ ≤ ·``. Parameters
-    ``p = [v_target, d_1 … d_N]``; all else is bounds.
+    (the linearised limit, one per piece, slope ``d`` a parameter) and ``s − σˢ ≤ ·``. With ``lower``,
+    ``u_k`` ends with ``σˡ_{k+1}`` and the stage with the row ``s + σˡ ≥ ·``. Parameters
+    ``p = [v_target, end curvature, v̂_N, d_1 … d_N]``; all else is bounds.
     """
     n = steps
     X = ca.SX.sym("x", 3, n + 1)
-    U = ca.SX.sym("u", 3, n)
+    U = ca.SX.sym("u", 4 if lower else 3, n)
     p = ca.SX.sym("p", 3 + _PIECES * n)
     v_target, curvature, v_hat = p[0], p[1], p[2]
     slope = ca.reshape(p[3:], _PIECES, n)
@@ -791,9 +888,7 @@ def _build_qp(steps: int, dt: float, w: SpeedWeights, residual: float = 1e-7) ->
     a1 = a + dt * j
     v_half = v + dt / 2 * a + dt**2 / 8 * j
     limit_rows = [v1 - slope[i, :] * s1 - sig_v for i in range(_PIECES)]
-    rows = ca.vertcat(s1 - X[0, 1:], v1 - X[1, 1:], a1 - X[2, 1:], v_half, *limit_rows, s1 - sig_s)
-    g = ca.reshape(rows, _ROWS * n, 1)
-    z = ca.vertcat(ca.reshape(ca.vertcat(X[:, :n], U), 6 * n, 1), X[:, n])
+    soft = [s1 - sig_s]
     cost = (
         dt * (w.speed * ca.sumsqr(X[1, 1:] - v_target) + w.acceleration * ca.sumsqr(X[2, 1:]))
         + dt * w.jerk * ca.sumsqr(j)
@@ -801,16 +896,24 @@ def _build_qp(steps: int, dt: float, w: SpeedWeights, residual: float = 1e-7) ->
         + w.position_violation * (ca.sum2(sig_s) + _QUADRATIC_SHARE * ca.sumsqr(sig_s))
         + curvature / 2 * (X[1, n] - v_hat) ** 2
     )
+    if lower:
+        sig_l = U[3, :]
+        soft.append(s1 + sig_l)
+        cost += w.follower_violation * (ca.sum2(sig_l) + _QUADRATIC_SHARE * ca.sumsqr(sig_l))
+    rows = ca.vertcat(s1 - X[0, 1:], v1 - X[1, 1:], a1 - X[2, 1:], v_half, *limit_rows, *soft)
+    width, n_rows = 3 + U.shape[0], rows.shape[0]
+    g = ca.reshape(rows, n_rows * n, 1)
+    z = ca.vertcat(ca.reshape(ca.vertcat(X[:, :n], U), width * n, 1), X[:, n])
     options: dict[str, Any] = {
         "error_on_fail": False,
         "inf": _HPIPM_INF,
         "hpipm": {**_HPIPM_OPTIONS, **{k: residual for k in _HPIPM_RESIDUALS}},
         "N": n,
         "nx": [3] * (n + 1),
-        "nu": [3] * n + [0],
-        "ng": [_ROWS - 3] * n + [0],
+        "nu": [width - 3] * n + [0],
+        "ng": [n_rows - 3] * n + [0],
     }
-    return _QP(ca.qpsol("speed_qp", "hpipm", {"x": z, "p": p, "f": cost, "g": g}, options), n)
+    return _QP(ca.qpsol("speed_qp", "hpipm", {"x": z, "p": p, "f": cost, "g": g}, options), n, lower)
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -818,8 +921,12 @@ def _build_qp(steps: int, dt: float, w: SpeedWeights, residual: float = 1e-7) ->
 
 
 def _cap(problem: SpeedProblem, s_bar: FloatArray) -> FloatArray:
-    """``s_bar`` (relative to s0) capped by the bounds ahead of each knot, non-decreasing, ≥ 0."""
-    s_bar = np.minimum(s_bar, problem._tables.s_bound - problem.s0)
+    """``s_bar`` (relative to s0) raised to ``s_lower`` at and before each knot, then capped by the bounds
+    at and ahead of each knot (the upper bounds win), non-decreasing, ≥ 0."""
+    tables = problem._tables
+    if tables.has_lower:
+        s_bar = np.maximum(s_bar, np.maximum.accumulate(tables.lower - problem.s0))
+    s_bar = np.minimum(s_bar, tables.s_bound - problem.s0)
     s_bar = np.minimum.accumulate(s_bar[::-1])[::-1]
     return np.maximum(s_bar, 0.0)
 
@@ -917,8 +1024,9 @@ class _Run:
 
 
 def _max_violation(problem: SpeedProblem, iterate: _Iterate) -> float:
-    """The largest violation of ``v_lim``, ``v ≥ 0`` and ``s_bound`` by an iterate."""
-    e_v, e_s = _violations(problem, iterate.s + problem.s0, iterate.v)
+    """The largest violation of ``v_lim``, ``v ≥ 0`` and ``s_bound`` by an iterate (not ``s_lower``: this
+    decides a restart from a full stop, which rarely keeps ahead of anything)."""
+    e_v, e_s, _ = _violations(problem, iterate.s + problem.s0, iterate.v)
     return float(max(np.max(e_v), np.max(e_s)))
 
 
@@ -1024,16 +1132,17 @@ class SpeedSolver:
         self._max_cached = max_cached
         self._restore_violation = float(restore_violation)
         self._qp_residual = float(qp_residual)
-        self._qps: OrderedDict[tuple[int, float, SpeedWeights], _QP] = OrderedDict()
+        self._qps: OrderedDict[tuple[int, float, SpeedWeights, bool], _QP] = OrderedDict()
         self._build_count = 0
 
     @property
     def build_count(self) -> int:
-        """How many QPs this solver has built (one per new ``(N, Δt, weights)`` still in the cache)."""
+        """How many QPs this solver has built (one per new ``(N, Δt, weights)`` still in the cache, and per
+        whether the problem has a lower bound)."""
         return self._build_count
 
     def _qp(self, problem: SpeedProblem) -> _QP:
-        key = (problem.steps, problem.dt, problem.weights)
+        key = (problem.steps, problem.dt, problem.weights, problem._tables.has_lower)
         qp = self._qps.get(key)
         if qp is None:
             qp = self._qps[key] = _build_qp(*key, residual=self._qp_residual)
@@ -1103,13 +1212,16 @@ class SpeedSolver:
             if not converged and not notes:
                 notes.append(f"the limit's linearisation had not converged after {qp_solves} QPs")
         s, v, a = integrate_jerk(problem.dt, problem.s0, problem.v0, problem.a0, jerk)
-        e_v, e_s = _violations(problem, s, v)
+        e_v, e_s, e_l = _violations(problem, s, v)
         speed_violation, position_violation = float(np.max(e_v)), float(np.max(e_s))
+        follower_violation = float(np.max(e_l))
         message = f"SQP from a {origin} start: {qp_solves} QPs, {ipm_iterations} HPIPM iterations"
         if best is not None and max(speed_violation, position_violation) > _REPORTED_VIOLATION:
             notes.append(
                 f"soft constraints violated by up to {speed_violation:.3g} m/s and {position_violation:.3g} m"
             )
+        if best is not None and follower_violation > _REPORTED_VIOLATION:
+            notes.append(f"s_lower violated by up to {follower_violation:.3g} m")
         if notes:
             message += "; " + "; ".join(notes)
         info = SolveInfo(
@@ -1128,8 +1240,9 @@ class SpeedSolver:
             jerk=np.array(jerk, dtype=np.float64),
             speed_violation=speed_violation,
             position_violation=position_violation,
-            max_violation=max(speed_violation, position_violation),
+            max_violation=max(speed_violation, position_violation, follower_violation),
             qp_solves=qp_solves,
+            follower_violation=follower_violation,
         )
 
     def _sqp(self, problem: SpeedProblem, qp: _QP, s_bar: FloatArray, v_end: float, budget: int) -> _Run:
@@ -1140,7 +1253,7 @@ class SpeedSolver:
         converged = False
         qp_solves = ipm_iterations = 0
         notes: list[str] = []
-        end_rows = slice(_ROWS * (n - 1) + 4, _ROWS * (n - 1) + 4 + _PIECES)
+        end_rows = slice(qp.rows * (n - 1) + 4, qp.rows * (n - 1) + 4 + _PIECES)
         qp.p[0] = problem.v_target
         for _ in range(budget):
             e, d, exact_end, inverse = _local_model(problem, s_bar, v_end)
@@ -1155,7 +1268,7 @@ class SpeedSolver:
                 break
             qp_solves += 1
             ipm_iterations += iterations
-            jerk = qp.x[3 : 6 * n : 6]
+            jerk = qp.x[3 : qp.width * n : qp.width]
             if flag not in _HPIPM_USABLE or not np.all(np.isfinite(jerk)):
                 notes.append(f"QP {qp_solves} failed (HPIPM flag {flag})")
                 break
@@ -1186,23 +1299,27 @@ class SpeedSolver:
         n = problem.steps
         tables = problem._tables
         a_lo, a_hi, v_lo = tables.a_lo, tables.a_hi, tables.v_lo
-        lower = qp.lbx[: 6 * n].reshape(n, 6).T  # (6, n) views of the stages 0 … N−1
-        upper = qp.ubx[: 6 * n].reshape(n, 6).T
+        width = qp.width
+        lower = qp.lbx[: width * n].reshape(n, width).T  # (width, n) views of the stages 0 … N−1
+        upper = qp.ubx[: width * n].reshape(n, width).T
         lower[0], upper[0] = -np.inf, np.inf  # s − s0
         lower[1], upper[1] = v_lo[:n], np.inf
         lower[2], upper[2] = a_lo[:n], a_hi[:n]
         lower[:3, 0] = upper[:3, 0] = (0.0, problem.v0, problem.a0)
         lower[3], upper[3] = -problem.jerk_max, problem.jerk_max
         lower[4:], upper[4:] = 0.0, np.inf
-        qp.lbx[6 * n :] = (-np.inf, v_lo[n], a_lo[n])
-        qp.ubx[6 * n :] = (np.inf, np.inf, a_hi[n])
-        # rows × N: dynamics (= 0), half-step speed (≥ v_lo), limit and position (≤)
-        lbg = qp.lbg.reshape(n, _ROWS).T
-        ubg = qp.ubg.reshape(n, _ROWS).T
+        qp.lbx[width * n :] = (-np.inf, v_lo[n], a_lo[n])
+        qp.ubx[width * n :] = (np.inf, np.inf, a_hi[n])
+        # rows × N: dynamics (= 0), half-step speed (≥ v_lo), limit and position (≤), lower position (≥)
+        lbg = qp.lbg.reshape(n, qp.rows).T
+        ubg = qp.ubg.reshape(n, qp.rows).T
         lbg[:3], ubg[:3] = 0.0, 0.0
         lbg[3], ubg[3] = tables.v_lo_half, np.inf
         lbg[4:] = -np.inf
-        ubg[-1] = tables.s_bound[1:] - problem.s0  # may be +inf
+        ubg[_ROWS - 1] = tables.s_bound[1:] - problem.s0  # may be +inf
+        if qp.rows > _ROWS:
+            lbg[_ROWS] = tables.lower[1:] - problem.s0  # may be −inf
+            ubg[_ROWS] = np.inf
 
     @staticmethod
     def _model_error(

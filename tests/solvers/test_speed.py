@@ -22,6 +22,7 @@ from solvers.speed import (
     SpeedSolver,
     SpeedWeights,
     braking_profile,
+    cruise_profile,
     end_speed_limit,
     integrate_jerk,
     objective,
@@ -70,7 +71,11 @@ def _assert_valid(problem: SpeedProblem, result: SpeedResult) -> None:
     floor, _ = problem.speed_floor()
     assert np.all(v >= floor - 1e-6)
     assert math.isfinite(result.max_violation) and result.max_violation >= 0
-    assert result.max_violation == max(result.speed_violation, result.position_violation)
+    assert result.max_violation == max(
+        result.speed_violation, result.position_violation, result.follower_violation
+    )
+    if problem.s_lower is None:
+        assert result.follower_violation == 0.0
 
 
 def _limit_excess(problem: SpeedProblem, result: SpeedResult) -> float:
@@ -275,11 +280,14 @@ def test_the_qp_is_built_once_per_size_step_and_weights() -> None:
     assert solver.build_count == 4
 
 
-def test_qps_on_bound_arrays_agree_with_casadis_ordinary_call() -> None:
+@pytest.mark.parametrize("lower", [False, True])
+def test_qps_on_bound_arrays_agree_with_casadis_ordinary_call(lower: bool) -> None:
     """One QP after another through the buffer, as the SQP does, against CasADi's call with the same
-    numbers (a buffer evaluated again can carry state over: CasADi 3.8.0 summed the solutions)."""
+    numbers (a buffer evaluated again can carry state over: CasADi 3.8.0 summed the solutions); with a
+    lower bound, the QP with its slack."""
     limit = {"limit_s": [0, 30, 40, 60, 70, 1000], "limit_v": [20, 20, 8, 8, 20, 20]}
-    problem = _problem(v0=15.0, s_stop=120.0, **limit)
+    s_lower = -10.0 + 14.0 * np.arange(81) * 0.1 if lower else None
+    problem = _problem(v0=15.0, s_stop=120.0, s_lower=s_lower, **limit)
     qp = SpeedSolver()._qp(problem)
     SpeedSolver._set_bounds(problem, qp)
     s_bar, v_end = speed._cold_start(problem)
@@ -290,6 +298,7 @@ def test_qps_on_bound_arrays_agree_with_casadis_ordinary_call() -> None:
         qp.slopes[...] = d
         qp.p[1:3] = curvature, v_end
         flag, iterations = qp.solve()
+        assert qp.x.size == (7 if lower else 6) * problem.steps + 3
         inputs = {name: getattr(qp, name).copy() for name in ("p", "lbx", "ubx", "lbg", "ubg")}
         reference = qp._function(**inputs)
         stats = qp._function.stats()
@@ -413,6 +422,134 @@ def test_solve_speed_keeps_a_solver_per_thread() -> None:
 
 
 # --------------------------------------------------------------------------------------------------------
+# Lower bound (s_lower): keeping ahead of a vehicle from behind
+
+_T = np.arange(81) * 0.1
+#: a vehicle from behind at 14 m/s (gap subtracted); the ego drives at 10 m/s with a target of 8
+_FOLLOWER = -8.0 + 14.0 * _T
+
+
+def test_lower_bound_is_met_when_it_can_be() -> None:
+    left_alone = SOLVER.solve(_problem(v_target=8.0))
+    assert np.max(_FOLLOWER[1:] - left_alone.s[1:]) > 10.0  # the bound matters
+    s_lower = np.concatenate(([50.0], _FOLLOWER[1:]))  # entry 0 (the measured start) is not imposed
+    problem = _problem(v_target=8.0, s_lower=s_lower)
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.info.status is SolverStatus.SOLVED
+    assert result.max_violation <= 1e-6 and result.follower_violation <= 1e-6
+    assert np.all(result.s[1:] >= _FOLLOWER[1:] - 1e-6)
+    assert result.v[-1] > 13.0  # keeps up with it, above its own target
+    assert result.info.objective == pytest.approx(
+        objective(problem, result.s, result.v, result.a, result.jerk)
+    )
+
+
+@pytest.mark.parametrize("ahead", ["s_stop", "s_upper"])
+def test_lower_bound_gives_way_to_a_stop_or_a_bound_ahead(ahead: str) -> None:
+    # a block 40 m ahead, or a leader at 10 m/s 15 m ahead (gap subtracted): both conflict with the follower
+    upper = {"s_stop": {"s_stop": 40.0}, "s_upper": {"s_upper": 15.0 + 10.0 * _T}}[ahead]
+    problem = _problem(v_target=8.0, s_lower=_FOLLOWER, **upper)
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.ok
+    s_bound = problem.s_bound()
+    conflict = float(np.max(_FOLLOWER[1:] - s_bound[1:]))
+    assert conflict > 5.0
+    assert result.position_violation <= 1e-6 and np.all(result.s <= s_bound + 1e-6)  # the bound ahead wins
+    assert result.s[-1] > s_bound[-1] - 0.5  # but the vehicle stays as far ahead as it allows
+    assert result.follower_violation == pytest.approx(float(np.max(_FOLLOWER[1:] - result.s[1:])))
+    assert result.follower_violation >= conflict - 1e-6  # reported
+    assert result.max_violation == result.follower_violation
+    assert "s_lower violated" in result.info.message
+
+
+def test_the_weights_decide_which_bound_wins() -> None:
+    weights = SpeedWeights(follower_violation=1e5)  # above position_violation: now the follower wins
+    problem = _problem(v_target=8.0, s_lower=_FOLLOWER, s_stop=40.0, weights=weights)
+    result = SOLVER.solve(problem)
+    _assert_valid(problem, result)
+    assert result.ok
+    assert result.follower_violation < 0.1 and result.position_violation > 50.0
+    assert SpeedWeights().follower_violation < SpeedWeights().position_violation
+
+
+def test_an_unused_lower_bound_changes_nothing() -> None:
+    solver = SpeedSolver()
+    plain = _problem(v0=15.0, limit_s=[0, 30, 40, 60, 70, 1000], limit_v=[20, 20, 8, 8, 20, 20], s_stop=90.0)
+    reference = solver.solve(plain)
+    for s_lower in (np.full(81, -math.inf), np.concatenate(([1e3], np.full(80, -math.inf)))):
+        # free throughout (entry 0 is not imposed): the same QP, the same profile
+        result = solver.solve(replace(plain, s_lower=s_lower))
+        assert np.array_equal(result.jerk, reference.jerk) and result.follower_violation == 0.0
+    assert solver.build_count == 1
+    # finite but never binding: the QP with the slack, the same profile up to its tolerance
+    result = solver.solve(replace(plain, s_lower=-100.0 + 0.0 * _T))
+    assert solver.build_count == 2
+    assert np.max(np.abs(result.s - reference.s)) < 1e-5 and np.max(np.abs(result.v - reference.v)) < 1e-5
+    assert result.info.status is reference.info.status and result.follower_violation == 0.0
+
+
+#: profiles from the solver as it was before s_lower existed (default solver): v every 10th knot, s_N
+# fmt: off
+_BEFORE_S_LOWER: dict[str, tuple[list[float], float]] = {
+    "dip": ([15.0, 14.0002585, 11.40042001, 8.639285418, 7.641071848, 7.796371457, 8.232707938, 10.10185258,
+             11.38219043], 80.93727199),
+    "stop": ([10.0, 9.000000009, 6.053415074, 3.025398383, 1.309519295, 0.4783183942, 0.1173363461,
+              0.005864831569, 0.0], 25.0),
+    "leader": ([12.0, 11.58059449, 11.12968481, 10.8511115, 10.64974841, 10.4150186, 10.01287107, 9.250195598,
+                8.0], 84.0),
+    "dip and leader": ([12.0, 12.2486734, 11.46932561, 8.884404836, 5.875505518, 5.996476259, 5.999999743,
+                        6.085807006, 7.441663508], 66.2793169),
+}
+# fmt: on
+
+
+def _before_problem(name: str) -> SpeedProblem:
+    if name == "dip":
+        return _problem(v0=15.0, limit_s=[0, 30, 40, 60, 70, 1000], limit_v=[20, 20, 8, 8, 20, 20])
+    if name == "stop":
+        return _problem(s_stop=25.0)
+    if name == "leader":
+        return _problem(v0=12.0, s_upper=20.0 + 8.0 * _T)
+    limit_s = np.linspace(0.0, 150.0, 301)  # bench/plan.py's speed problem
+    return SpeedProblem(
+        dt=0.1,
+        steps=80,
+        v0=12.0,
+        limit_s=limit_s,
+        limit_v=np.where((limit_s > 40) & (limit_s < 60), 6.0, 15.0),
+        v_target=15.0,
+        a_min=-6.0,
+        a_max=2.5,
+        jerk_max=8.0,
+        s_upper=40.0 + 8.0 * _T,
+    )
+
+
+@pytest.mark.parametrize("name", sorted(_BEFORE_S_LOWER))
+def test_problems_without_a_lower_bound_are_solved_as_before(name: str) -> None:
+    v, s_end = _BEFORE_S_LOWER[name]
+    result = SpeedSolver().solve(_before_problem(name))
+    assert result.info.status is SolverStatus.SOLVED
+    assert np.allclose(result.v[::10], v, rtol=0.0, atol=1e-6)
+    assert result.s[-1] == pytest.approx(s_end, abs=1e-6)
+    assert result.follower_violation == 0.0
+
+
+def test_cruise_profile_releases_the_acceleration_and_keeps_the_speed() -> None:
+    problem = _problem(a0=-3.0, jerk_max=10.0)
+    jerk = cruise_profile(problem)
+    _, v, a = integrate_jerk(problem.dt, 0.0, problem.v0, problem.a0, jerk)
+    assert np.max(np.abs(jerk)) <= problem.jerk_max * (1 + 1e-12)
+    assert np.all(a[:3] < 0) and np.all(np.abs(a[3:]) < 1e-12)  # released in 0.3 s at the jerk limit
+    assert np.allclose(v[3:], 10.0 - 0.45)
+    # releasing the brake would end below standstill: it stops instead
+    slow = _problem(v0=0.3, a0=-3.0, jerk_max=10.0)
+    assert np.array_equal(cruise_profile(slow), braking_profile(slow))
+
+
+# --------------------------------------------------------------------------------------------------------
 # Misuse
 
 
@@ -449,6 +586,10 @@ def test_solve_speed_keeps_a_solver_per_thread() -> None:
         ({"s_upper": np.zeros(80)}, "s_upper"),
         ({"s_upper": np.full(81, -math.inf)}, "s_upper"),
         ({"s_upper": np.full(81, math.nan)}, "s_upper"),
+        ({"s_lower": np.zeros(80)}, "s_lower"),
+        ({"s_lower": np.full(81, math.inf)}, "s_lower"),
+        ({"s_lower": np.full(81, math.nan)}, "s_lower"),
+        ({"s_lower": [[0.0] * 81]}, "s_lower"),
         ({"weights": {"speed": 1.0}}, "weights"),
     ],
 )
@@ -459,7 +600,14 @@ def test_misuse_raises_value_error(change: dict[str, Any], match: str) -> None:
 
 @pytest.mark.parametrize(
     "kwargs",
-    [{"speed": 0.0}, {"jerk": -1.0}, {"acceleration": math.nan}, {"speed_violation": 0.0}, {"jerk": True}],
+    [
+        {"speed": 0.0},
+        {"jerk": -1.0},
+        {"acceleration": math.nan},
+        {"speed_violation": 0.0},
+        {"jerk": True},
+        {"follower_violation": 0.0},
+    ],
 )
 def test_bad_weights_raise(kwargs: dict[str, Any]) -> None:
     with pytest.raises(ValueError, match="weights"):
