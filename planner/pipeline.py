@@ -314,17 +314,7 @@ def _space_time_bound(
     movers, states = [movers[k] for k in near], [states[k] for k in near]
     if not movers:
         return None
-    # Every obstacle at every time: corners and edge midpoints, mapped by TransF-κ in one call.
-    outlines = []
-    for ob, st in zip(movers, states, strict=True):
-        corners = box_corners(st[:, 0], st[:, 1], st[:, 2], ob.length, ob.width)  # (T, 4, 2)
-        outlines.append(np.concatenate((corners, 0.5 * (corners + np.roll(corners, -1, axis=1))), axis=1))
-    pts = np.stack(outlines)  # (K, T, 8, 2)
-    fr = to_frenet(ref, pts.reshape(-1, 2))
-    s_box = fr.s.reshape(pts.shape[:3])
-    d_box = fr.d.reshape(pts.shape[:3])
-    s_min, s_max = s_box.min(axis=2), s_box.max(axis=2)  # (K, T)
-    d_min, d_max = d_box.min(axis=2), d_box.max(axis=2)
+    s_min, s_max, d_min, d_max = _frenet_extents(ref, movers, states)  # (K, T)
     # Only obstacles ahead of the ego now are followed or yielded to; one coming from behind is the
     # follower's to avoid (braking for it as it overtakes would invite a rear-end collision).
     ahead = (0.5 * (s_min[:, :1] + s_max[:, :1]) > start_s) | (s_min[:, :1] > start_s)
