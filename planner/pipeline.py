@@ -80,8 +80,6 @@ HEADWAY = 1.0
 #: headway kept to the obstacles ahead: the gap behind is the follower's to keep, ours is not to brake
 #: into it, and the two headways together must fit between a leader and a follower.
 FOLLOWER_HEADWAY = 0.5 * HEADWAY
-#: a vehicle behind's speed is its fastest mean over this long while it bounds the profile [s]
-FOLLOWER_WINDOW = 1.0
 #: jerk bound of the lateral profile [1/m²]
 LATERAL_JERK = 0.5
 #: jerk bound of the speed profile [m/s³]
@@ -269,14 +267,14 @@ def _lateral_qp(
     return solver.solve(problem, max_iter=QP_MAX_ITER, time_limit_s=time_limit_s)
 
 
-def _speed_limit(path: Path, problem: PlanningProblem, keep_up: float = 0.0) -> FloatArray:
-    """The speed profile's limit along ``path`` [m/s]: the target speed, or ``keep_up`` [m/s] where that is
-    higher (the speed of a vehicle behind to keep ahead of), within the vehicle's and the curvature's."""
+def _speed_limit(path: Path, problem: PlanningProblem) -> FloatArray:
+    """The speed profile's limit along ``path`` [m/s]: the target speed, within the vehicle's and the
+    curvature's (the target is a cap: a faster vehicle behind does not raise it)."""
     v = problem.vehicle
     target = (
         v.max_speed
         if problem.options.target_speed is None
-        else min(max(problem.options.target_speed, keep_up), v.max_speed)
+        else min(problem.options.target_speed, v.max_speed)
     )
     with np.errstate(divide="ignore"):
         lateral = np.sqrt(
@@ -366,12 +364,11 @@ def _follower_bound(
     t: FloatArray,
     headway: float,
     start_s: float,
-) -> tuple[FloatArray | None, float]:
+) -> FloatArray | None:
     """``σ_min(t_k)`` [m] at the knot times ``t`` (evenly spaced) [s]: how far along the path the
     vehicle's centre must be for its footprint to be ahead of the boxes of the moving obstacles behind it
     at the start (:func:`followers`) at every time in ``[t_k, t_k + headway]`` (``headway`` [s] rounded up
-    to the knot spacing); ``−inf`` where free, ``None`` when free throughout. Also returns the fastest such
-    vehicle's speed along the reference while it bounds [m/s] (0 if none).
+    to the knot spacing); ``−inf`` where free, ``None`` when free throughout.
 
     A vehicle bounds from the first time its box meets the footprint anywhere along the path, if it is
     then behind where the ego would be at its current speed, and for as long as it keeps meeting it:
@@ -379,7 +376,7 @@ def _follower_bound(
     chased. At each time the bound is the knot after the last one whose footprint it meets.
     """
     if not movers:
-        return None, 0.0
+        return None
     window = int(np.ceil(headway / float(t[1] - t[0]) - 1e-9))  # steps of the headway; t: ≥ 2 times
     t = t[0] + (t[1] - t[0]) * np.arange(t.size + window)  # the knots and the headway beyond them
     half_s, half_d = vehicle_extent(np.zeros_like(path.s), problem.vehicle, OBSTACLE_MARGIN)
@@ -392,7 +389,7 @@ def _follower_bound(
     near = np.flatnonzero(np.isfinite(dist).reshape(len(movers), -1).any(axis=1))
     chosen = near[_behind(ref, [movers[k] for k in near], start_s)]
     if chosen.size == 0:
-        return None, 0.0
+        return None
     s_min, s_max, d_min, d_max = _frenet_extents(
         ref, [movers[k] for k in chosen], [states[k] for k in chosen]
     )
@@ -406,22 +403,11 @@ def _follower_bound(
     after = np.arange(meets.shape[1])[None, :] >= first[:, None]
     active = meets & ~(np.cumsum(after & ~meets, axis=1) > 0) & behind_then[:, None]  # the first run only
     if not active.any():
-        return None, 0.0
+        return None
     last = hit.shape[2] - 1 - np.argmax(hit[..., ::-1], axis=2)  # last knot met, (K, T)
     at = np.where(active, path.sigma[np.minimum(last + 1, hit.shape[2] - 1)], -np.inf).max(axis=0)
     bound = sliding_window_view(at, window + 1).max(axis=1)  # the most ahead over each [t_k, t_k + headway]
-    # Their speed: the fastest mean over FOLLOWER_WINDOW while bounding (a prediction ends held, so a
-    # mean over the whole horizon would be too low), or over the whole time bounding when shorter.
-    w = int(np.clip(round(FOLLOWER_WINDOW / float(t[1] - t[0])), 1, t.size - 1))  # t: ≥ 2 times
-    windows = active[:, w:] & active[:, :-w]  # both ends in the one run: all of it
-    rates = (s_max[:, w:] - s_max[:, :-w]) / (t[w:] - t[:-w])
-    speed = float(np.max(np.where(windows & np.isfinite(rates), rates, 0.0), initial=0.0))
-    start_k, end_k = np.argmax(active, axis=1), active.shape[1] - 1 - np.argmax(active[:, ::-1], axis=1)
-    short = active.any(axis=1) & ~windows.any(axis=1) & (end_k > start_k)
-    if short.any():
-        mean = (s_max[rows, end_k] - s_max[rows, start_k]) / (t[end_k] - t[start_k] + 1e-12)
-        speed = max(speed, float(np.max(np.where(short & np.isfinite(mean), mean, 0.0))))
-    return np.asarray(bound), speed
+    return np.asarray(bound)
 
 
 def _speed(
@@ -434,7 +420,6 @@ def _speed(
     dt: float,
     jerk_max: float = SPEED_JERK,
     s_lower: FloatArray | None = None,
-    keep_up: float = 0.0,
 ) -> SpeedResult:
     v = problem.vehicle
     ego = problem.ego
@@ -443,7 +428,7 @@ def _speed(
         if problem.options.target_speed is None
         else min(problem.options.target_speed, v.max_speed)
     )
-    limit = _speed_limit(path, problem, keep_up)
+    limit = _speed_limit(path, problem)
     sp = SpeedProblem(
         dt=dt,
         steps=steps,
@@ -669,18 +654,18 @@ def plan(problem: PlanningProblem) -> PlanResult:
         if s_upper is not None:
             s_upper = np.maximum(s_upper - STOP_GAP, 0.0)
         # Mirrored for the vehicles behind: wherever they will be within FOLLOWER_HEADWAY. A soft bound that
-        # gives way to the stop and to the obstacles ahead; the target speed gives way to theirs.
-        s_lower, keep_up = _follower_bound(ref, path, movers, problem, t_knots, FOLLOWER_HEADWAY, start.s)
+        # gives way to the stop, to the obstacles ahead and to the speed limit (the target speed is a cap).
+        s_lower = _follower_bound(ref, path, movers, problem, t_knots, FOLLOWER_HEADWAY, start.s)
         if s_lower is not None:
             s_lower = s_lower + STOP_GAP
         solve = partial(_speed, solvers.speed, path, problem, s_stop, s_upper, steps, dt_speed)
         jerk = EMERGENCY_JERK if blocked is not None and not road_end else SPEED_JERK
-        speed = solve(jerk, s_lower, keep_up)
+        speed = solve(jerk, s_lower)
         if max(speed.speed_violation, speed.position_violation) > SPEED_SLACK and jerk < EMERGENCY_JERK:
             # The comfortable jerk cannot slow down in time (a curve or an obstacle close ahead):
             # safety before comfort, brake as hard as the emergency jerk allows. (Not for a follower
             # bound alone: more jerk hardly speeds up sooner.)
-            speed = solve(EMERGENCY_JERK, s_lower, keep_up)
+            speed = solve(EMERGENCY_JERK, s_lower)
         planned = speed
         if speed.info.ok and speed.position_violation > POSITION_SLACK:
             # Past a stop or a space-time bound (the solver's limits are soft): full braking keeps every
