@@ -21,10 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.ndimage import maximum_filter1d
 
 from planner.candidates import lane_bounds
-from planner.collision import FrenetBoxes
+from planner.collision import FrenetBoxes, box_corners
+from planner.frenet import to_cartesian, to_frenet
 from planner.problem import Lane, Vehicle
 from planner.reference import FloatArray, ReferenceLine, widths_at
 
@@ -62,29 +62,50 @@ def pass_left(
     return out
 
 
-def curve_bulge(ref: ReferenceLine, s: FloatArray, vehicle: Vehicle) -> tuple[FloatArray, FloatArray]:
-    """How far [m] the footprint's corners reach beyond its sides on the outside of a curve, to the
-    left and to the right, at knots ``s`` [m].
+#: the footprint's corners in :func:`planner.collision.box_corners`' order, by side
+RIGHT_CORNERS, LEFT_CORNERS = (0, 1), (2, 3)
 
-    A chord of the vehicle's length ``L`` on a path of curvature ``κ_p`` leaves the path by the sagitta
-    ``κ_p (L/2)² / 2``: on the outer side of a curve the front and rear corners stick out that much
-    beyond ``W/2``. The path's curvature is ``κ/(1 − κd) ≤ min(|κ|, κ_max)`` on the outer side of the
-    reference and under the κ·d bound, so the bulge uses that, with the tightest ``κ`` within ``L/2``
-    either side of the knot (the footprint covers that stretch).
+
+@dataclass(frozen=True)
+class CornerReach:
+    """The footprint's corners when its centre is on a knot, aligned with the reference, each of shape
+    ``(n, 4)`` (rear right, front right, front left, rear left): their arc lengths ``s`` [m] on the
+    reference and how far [m] each reaches beyond the side it is on (0 where it stays within ``W/2``)."""
+
+    s: FloatArray
+    reach: FloatArray
+
+    @property
+    def left(self) -> FloatArray:
+        """The most any corner reaches out on the left, per knot [m]."""
+        return np.asarray(self.reach[:, LEFT_CORNERS].max(axis=1))
+
+    @property
+    def right(self) -> FloatArray:
+        """The most any corner reaches out on the right, per knot [m]."""
+        return np.asarray(self.reach[:, RIGHT_CORNERS].max(axis=1))
+
+
+def curve_bulge(
+    ref: ReferenceLine, s: FloatArray, vehicle: Vehicle, d: FloatArray | None = None
+) -> CornerReach:
+    """The footprint's corners at knots ``s`` [m], its centre at offsets ``d`` [m] (default 0) and its
+    axis along the reference's heading, mapped to Frenet coordinates by TransF-κ as the trajectory
+    checks map them.
+
+    The body is straight and the reference bends away from it: on the outside of a curve the front and
+    rear corners reach beyond ``W/2`` (by about the sagitta ``κ(L/2)²/2`` of a chord of the body's
+    length, less where the curve tightens under one end only), a left turn to the right and a right
+    turn to the left. And on a curve the outer corners lie less than ``L/2`` ahead of and behind the
+    centre along the reference (about ``(L/2)/(1 + |κ|(d + W/2))`` on the outside).
     """
-    half_l = 0.5 * vehicle.length
-    kappa = ref.kappa_at(s)
-    step = float(s[1] - s[0]) if s.shape[0] > 1 else half_l
-    # knots within L/2 either side; never more than there are knots (a window past both ends sees them all)
-    size = 2 * int(min(np.ceil(half_l / max(step, 1e-6)), s.shape[0])) + 1
-    left_turn = maximum_filter1d(np.clip(kappa, 0.0, None), size=size, mode="nearest")
-    right_turn = maximum_filter1d(np.clip(-kappa, 0.0, None), size=size, mode="nearest")
-    sag = 0.5 * half_l**2
-    # a left turn pushes the corners out to the right, a right turn to the left
-    return (
-        sag * np.minimum(right_turn, vehicle.max_curvature),
-        sag * np.minimum(left_turn, vehicle.max_curvature),
-    )
+    d0 = np.zeros_like(s) if d is None else np.asarray(d, dtype=float)
+    centre = to_cartesian(ref, s, d0)
+    corners = box_corners(centre[:, 0], centre[:, 1], ref.heading_at(s), vehicle.length, vehicle.width)
+    fr = to_frenet(ref, corners.reshape(-1, 2))
+    side = np.array([-1.0, -1.0, 1.0, 1.0])  # right corners reach out to negative d
+    reach = side * (fr.d.reshape(-1, 4) - d0[:, None]) - 0.5 * vehicle.width
+    return CornerReach(s=fr.s.reshape(-1, 4), reach=np.maximum(reach, 0.0))
 
 
 def lateral_bounds(
@@ -97,8 +118,11 @@ def lateral_bounds(
     boxes: FrenetBoxes,
     left_of: NDArray[np.bool_],
     heading_error: FloatArray | None = None,
+    lane_margin: float | None = None,
 ) -> LateralBounds:
     """Bounds at knots ``s`` [m]; ``left_of[k]`` says on which side obstacle ``k`` is passed.
+
+    ``margin`` [m] is kept to the obstacles and, unless ``lane_margin`` [m] is given, to the lane's edges.
 
     With the path's expected heading error to the reference ``θ`` [rad] per knot, the footprint's
     lateral half-extent is ``L/2·|sin θ| + W/2·cos θ`` rather than ``W/2``.
@@ -106,7 +130,10 @@ def lateral_bounds(
     theta = np.zeros_like(s) if heading_error is None else np.asarray(heading_error)
     half_extent = 0.5 * vehicle.length * np.abs(np.sin(theta)) + 0.5 * vehicle.width * np.cos(theta)
     half_l, half_w = 0.5 * vehicle.length, 0.5 * vehicle.width
-    bulge_left, bulge_right = curve_bulge(ref, s, vehicle)
+    edge = margin if lane_margin is None else lane_margin
+    k_lower, k_upper = _turning_limits(ref, lane, s, vehicle)
+    # the corners where the path is at the least offset the turning limit leaves it (d = 0 elsewhere)
+    corners = curve_bulge(ref, s, vehicle, np.clip(0.0, k_lower, k_upper))
 
     def obstacle_edges(right: FloatArray | float, left: FloatArray | float) -> tuple[FloatArray, FloatArray]:
         """Lower and upper bound from the obstacles, for footprint half-extents ``right`` and ``left``."""
@@ -125,7 +152,7 @@ def lateral_bounds(
     # keep (where the lane leaves no room for the margin, it is dropped; a lane narrower than the vehicle
     # itself cannot be driven: the road is blocked there, or ends, as where a lane's width falls to zero
     # at its last point).
-    straight = lane_bounds(ref, lane, s, half_width=half_w, margin=margin)
+    straight = lane_bounds(ref, lane, s, half_width=half_w, margin=edge)
     tight = lane_bounds(ref, lane, s, half_width=half_w, margin=0.0)
     narrow = tight.lower > tight.upper - 1e-9
     fits = straight.lower < straight.upper
@@ -134,17 +161,28 @@ def lateral_bounds(
     obs_lower, obs_upper = obstacle_edges(half_w, half_w)
     lower, upper = np.maximum(lower, obs_lower), np.minimum(upper, obs_upper)
     # Then, wherever it fits with all of the above: the footprint turned by the heading error, and
-    # then also with its corners bulging out of curves (towards the lane's edge and the obstacles on
-    # the outside alike).
-    turned = lane_bounds(ref, lane, s, half_width=0.0, margin=margin)
-    for extra_right, extra_left in ((0.0, 0.0), (bulge_right, bulge_left)):
-        right, left = half_extent + extra_right, half_extent + extra_left
-        obs_lo, obs_up = obstacle_edges(right, left)
-        lo = np.maximum(turned.lower + right, obs_lo)
-        up = np.minimum(turned.upper - left, obs_up)
-        fits = (lo <= up) & ~narrow
-        lower, upper = np.where(fits, lo, lower), np.where(fits, up, upper)
-    k_lower, k_upper = _turning_limits(ref, lane, s, vehicle)
+    # then also with its corners bulging out of curves, towards the obstacles on the outside and the
+    # lane's edge: each corner against the lane's width where it is (a lane flaring out in a turn gives
+    # the corner that bulges into it the room it has there, and one narrowing ahead takes it).
+    turned = lane_bounds(ref, lane, s, half_width=0.0, margin=edge)
+    lo, up = turned.lower + half_extent, turned.upper - half_extent
+    obs_lo, obs_up = obstacle_edges(half_extent, half_extent)
+    lo, up = np.maximum(lo, obs_lo), np.minimum(up, obs_up)
+    fits = (lo <= up) & ~narrow
+    lower, upper = np.where(fits, lo, lower), np.where(fits, up, upper)
+    obs_lo, obs_up = obstacle_edges(half_extent + corners.right, half_extent + corners.left)
+    lo, up = np.maximum(lo, obs_lo), np.minimum(up, obs_up)
+    # (Behind the first knot, where the vehicle comes from, the lane is taken as wide as at that knot:
+    # a reference often starts just behind the vehicle, where the lane's edges may close in.)
+    corner_s = np.maximum(corners.s, s[0])
+    left_w = widths_at(lane.left_width, ref, corner_s, field_name="lane.left_width")
+    right_w = widths_at(lane.right_width, ref, corner_s, field_name="lane.right_width")
+    for c in RIGHT_CORNERS:
+        lo = np.maximum(lo, -right_w[:, c] + edge + half_extent + corners.reach[:, c])
+    for c in LEFT_CORNERS:
+        up = np.minimum(up, left_w[:, c] - edge - half_extent - corners.reach[:, c])
+    fits = (lo <= up) & ~narrow
+    lower, upper = np.where(fits, lo, lower), np.where(fits, up, upper)
     # Last, the turning limit: where the lane leaves no room within it, the road is blocked for this
     # vehicle (a turn tighter than it can drive in the lane).
     lower, upper = np.maximum(lower, k_lower), np.minimum(upper, k_upper)

@@ -267,6 +267,96 @@ def _lateral_qp(
     return solver.solve(problem, max_iter=QP_MAX_ITER, time_limit_s=time_limit_s)
 
 
+@dataclass(frozen=True)
+class _LateralResult:
+    """The lateral stage's outcome: the bounds handed to the QP (cut before a block), the reference
+    offsets at their knots, whether a block is the road's end, and the QP's answer."""
+
+    bounds: LateralBounds
+    d_ref: FloatArray
+    road_end: bool
+    qp: LateralQPResult
+
+    @property
+    def solved(self) -> bool:
+        return self.qp.info.status in (SolverStatus.SOLVED, SolverStatus.SOLVED_INACCURATE)
+
+    def better_than_unsolved(self) -> bool:
+        """Solved, with no block on the way other than the road's end."""
+        return self.solved and (self.bounds.blocked is None or self.road_end)
+
+    def rank(self) -> tuple[float, bool]:
+        """How good: the farther the first block (none: infinitely far), then solved over not."""
+        blocked = self.bounds.blocked
+        far = np.inf if blocked is None or self.road_end else float(self.bounds.s[-1])
+        return far, self.solved
+
+
+def _lateral(
+    solver: LateralQPSolver,
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    knots: FloatArray,
+    d_ref: FloatArray,
+    boxes: FrenetBoxes,
+    lane_margin: float | None,
+    timer: _Timer,
+) -> _LateralResult:
+    """Bounds at ``knots`` (``lane_margin`` [m] to the lane's edges, default the options' margin) and the
+    lateral QP on them, tracking the candidate's offsets ``d_ref`` [m]."""
+    vehicle, options = problem.vehicle, problem.options
+    lane = lane_bounds(
+        ref, problem.lane, knots, half_width=0.5 * vehicle.width, margin=options.lateral_margin
+    )
+    left_of = pass_left(boxes, knots, d_ref, lane.lower, lane.upper)
+    bounds = lateral_bounds(
+        ref,
+        problem.lane,
+        knots,
+        vehicle,
+        margin=options.lateral_margin,
+        boxes=boxes,
+        left_of=left_of,
+        heading_error=_smoothed_slope(d_ref, knots),
+        lane_margin=lane_margin,
+    )
+    blocked = bounds.blocked
+    # The vehicle's centre never gets beyond this: the speed stage stops its front STOP_GAP before the
+    # reference's end.
+    reach = ref.length - 0.5 * vehicle.length - STOP_GAP
+    # a lane that runs out (narrower than the vehicle) at the reference's end is its end, not a block
+    road_end = blocked is not None and knots[blocked] >= reach
+    if blocked is not None:
+        keep = max(blocked, 3)
+        lower = bounds.lower[:keep]
+        upper = np.maximum(bounds.upper[:keep], lower)
+        bounds = LateralBounds(
+            s=knots[:keep],
+            lower=np.where(np.isfinite(lower), lower, start.d),
+            upper=np.where(np.isfinite(upper), upper, start.d),
+            blocked=blocked,
+        )
+        d_ref = d_ref[:keep]
+    # Beyond that the path is never driven: the lane's end there (its width often falls to 0 at the last
+    # point) must not bend the path before it. The bounds of the last knot within reach hold there.
+    last = int(np.searchsorted(bounds.s, reach, side="right")) - 1
+    if last >= 1:
+        beyond = bounds.s > reach
+        bounds = LateralBounds(
+            s=bounds.s,
+            lower=np.where(beyond, bounds.lower[last], bounds.lower),
+            upper=np.where(beyond, bounds.upper[last], bounds.upper),
+            blocked=bounds.blocked,
+        )
+    allowance = curvature_allowance(bounds.s, start, problem)
+    qp = _lateral_qp(solver, bounds, d_ref, start, ref, allowance, timer.remaining_s())
+    if qp.info.status not in _USABLE:  # too fast for the road: keep at least the vehicle's limit
+        allowance = np.full(bounds.s.shape, 0.99 * vehicle.max_curvature)
+        qp = _lateral_qp(solver, bounds, d_ref, start, ref, allowance, timer.remaining_s())
+    return _LateralResult(bounds, d_ref, bool(road_end), qp)
+
+
 def _speed_limit(path: Path, problem: PlanningProblem) -> FloatArray:
     """The speed profile's limit along ``path`` [m/s]: the target speed, within the vehicle's and the
     curvature's (the target is a cap: a faster vehicle behind does not raise it)."""
@@ -588,39 +678,20 @@ def plan(problem: PlanningProblem) -> PlanResult:
     with timer.stage("lateral"):
         knots = _knots(start, max(float(s_c[-1]), start.s + 2.0 * KNOT_SPACING))
         d_ref = np.interp(knots, s_c, d_c)
-        lane = lane_bounds(
-            ref, problem.lane, knots, half_width=0.5 * vehicle.width, margin=options.lateral_margin
+        lateral = _lateral(solvers.lateral, ref, problem, start, knots, d_ref, boxes, None, timer)
+        if options.lateral_margin > 0.0 and not lateral.better_than_unsolved():
+            # Where the margin to the lane's edges leaves no room (a tight turn, a narrow passage), it is
+            # dropped, as it is knot by knot where the lane is narrow (the margin to obstacles is kept).
+            relaxed = _lateral(solvers.lateral, ref, problem, start, knots, d_ref, boxes, 0.0, timer)
+            if relaxed.rank() > lateral.rank():
+                lateral = relaxed
+        bounds, d_ref, blocked, road_end, qp = (
+            lateral.bounds,
+            lateral.d_ref,
+            lateral.bounds.blocked,
+            lateral.road_end,
+            lateral.qp,
         )
-        left_of = pass_left(boxes, knots, d_ref, lane.lower, lane.upper)
-        bounds = lateral_bounds(
-            ref,
-            problem.lane,
-            knots,
-            vehicle,
-            margin=options.lateral_margin,
-            boxes=boxes,
-            left_of=left_of,
-            heading_error=_smoothed_slope(d_ref, knots),
-        )
-        blocked = bounds.blocked
-        # a lane that runs out (narrower than the vehicle) at the reference's end is its end, not a block
-        road_end = blocked is not None and knots[blocked] >= ref.length - 0.5 * vehicle.length - STOP_GAP
-        if blocked is not None:
-            keep = max(blocked, 3)
-            lower = bounds.lower[:keep]
-            upper = np.maximum(bounds.upper[:keep], lower)
-            bounds = LateralBounds(
-                s=knots[:keep],
-                lower=np.where(np.isfinite(lower), lower, start.d),
-                upper=np.where(np.isfinite(upper), upper, start.d),
-                blocked=blocked,
-            )
-            d_ref = d_ref[:keep]
-        allowance = curvature_allowance(bounds.s, start, problem)
-        qp = _lateral_qp(solvers.lateral, bounds, d_ref, start, ref, allowance, timer.remaining_s())
-        if qp.info.status not in _USABLE:  # too fast for the road: keep at least the vehicle's limit
-            allowance = np.full(bounds.s.shape, 0.99 * vehicle.max_curvature)
-            qp = _lateral_qp(solvers.lateral, bounds, d_ref, start, ref, allowance, timer.remaining_s())
         knot_count = int(bounds.s.shape[0])
 
     note = ""
