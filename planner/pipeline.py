@@ -349,6 +349,16 @@ def _lateral(
             upper=np.where(beyond, bounds.upper[last], bounds.upper),
             blocked=bounds.blocked,
         )
+    # The ego is where it is: where the bounds near the start exclude its offset (a conservative bound
+    # it is already inside, as beside an obstacle it is passing), they open to it and close again
+    # linearly over one vehicle length, so that the QP can start there; the checks judge the footprint.
+    ramp = np.clip((bounds.s - start.s) / vehicle.length, 0.0, 1.0)
+    bounds = LateralBounds(
+        s=bounds.s,
+        lower=np.minimum(bounds.lower, start.d + (bounds.lower - start.d) * ramp),
+        upper=np.maximum(bounds.upper, start.d + (bounds.upper - start.d) * ramp),
+        blocked=bounds.blocked,
+    )
     allowance = curvature_allowance(bounds.s, start, problem)
     qp = _lateral_qp(solver, bounds, d_ref, start, ref, allowance, timer.remaining_s())
     if qp.info.status not in _USABLE:  # too fast for the road: keep at least the vehicle's limit

@@ -286,3 +286,14 @@ def test_an_obstacle_on_the_outside_of_a_curve_is_cleared_by_the_bulging_corners
     ego = Ego(x=x, y=y, heading=heading, speed=speed, acceleration=acceleration, curvature=curvature)
     result = _checked(replace(demo_problem(), ego=ego))
     assert result.status == "ok", result.message
+
+
+def test_an_ego_already_inside_a_conservative_obstacle_bound_starts_from_where_it_is() -> None:
+    """Passing the demo's cone, the ego is 7 cm inside the (conservative) bound the corners' bulge puts
+    around it: the bounds open to the ego's offset at the start instead of making the QP infeasible.
+
+    Regression: a closed-loop state of the demo that answered "lateral QP failed: infeasible".
+    """
+    ego = Ego(x=5.8343, y=5.2018, heading=1.2390, speed=3.8262, acceleration=-1.5830, curvature=0.17925)
+    result = _checked(replace(demo_problem(), ego=ego))
+    assert result.status == "ok", result.message

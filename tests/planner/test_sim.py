@@ -247,10 +247,11 @@ def test_transf_kappa_drives_the_u_turn() -> None:
     assert m.max_tracking_error < 0.05
     assert m.max_lateral_acceleration <= problem.vehicle.max_lateral_acceleration + 0.1
     assert sum(m.status_counts.values()) == m.steps == len(result.steps)
-    # the cycles chain up: every plan starts where the vehicle was
+    # the cycles chain up: every plan starts where the vehicle was (to the lateral QP's tolerance on its
+    # initial-state rows, micrometres)
     for st in result.steps:
         assert st.trajectory is not None
-        assert math.hypot(st.trajectory.x[0] - st.state.x, st.trajectory.y[0] - st.state.y) < 1e-6
+        assert math.hypot(st.trajectory.x[0] - st.state.x, st.trajectory.y[0] - st.state.y) < 1e-4
     json.dumps(m.to_dict())
 
 
