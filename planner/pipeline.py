@@ -713,6 +713,14 @@ def plan(problem: PlanningProblem) -> PlanResult:
         hold = np.full(bounds.s.shape, start.d)
         path = frenet_path(ref, bounds.s, hold, 0.0 * hold, 0.0 * hold)
         note = f" (no room to steer, lateral QP {qp.info.status}: keeping the current offset)"
+        # At that offset the footprint (aligned with the reference, as the path is) may meet a static
+        # obstacle before the block: the first knot where it meets one, with the lateral bounds' margin
+        # along s and d, is the block then (the moving ones bound the speed profile).
+        half_s, half_d = vehicle_extent(np.zeros_like(hold), vehicle, options.lateral_margin)
+        met = np.flatnonzero(box_hits(boxes, bounds.s, hold, half_s, half_d))
+        if met.size and met[0] < blocked:
+            blocked, road_end = int(met[0]), False
+            note += f" (an obstacle on that offset {bounds.s[blocked] - start.s:.1f} m ahead)"
     else:
         return fallback(f"lateral QP failed: {qp.info.status}", candidate_path, qp.info, _NOT_RUN)
     if reason := timer.overrun("lateral"):

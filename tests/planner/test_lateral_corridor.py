@@ -9,6 +9,9 @@
   where the corners are, and the margin to the lane's edges left no corridor: the QP was infeasible
   from the first cycle, and its unfinished iterates broke the curvature limit in the turn (49
   fallbacks, then a collision from behind while stopped in the turn).
+* USA_US101-6_1_T-1: stopped at a heading error with the road blocked ahead and no room to steer, the
+  planner keeps the current offset; that offset ran into a parked car long before the block, the stop
+  was only before the block, and every cycle ended in a fallback that hit the car (227 fallbacks).
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from scenario_roads import Road, arc_piece, straight_piece
 
 from planner.io import problem_from_json
 from planner.pipeline import plan
-from planner.problem import Ego, Lane, Options, PlanningProblem, Vehicle
+from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.sim import shift_obstacle
 from solvers.result import SolverStatus
 
@@ -108,3 +111,41 @@ def test_lohmar_entering_the_turn_keeps_the_curvature_limit() -> None:
     assert result.status == "ok", result.message
     moving = result.trajectory.v > 0.05
     assert np.abs(result.trajectory.curvature[moving]).max() <= problem.vehicle.max_curvature * (1 + 1e-3)
+
+
+def _box(s0: float, s1: float, d0: float, d1: float) -> np.ndarray:
+    return np.array([[s0, d0], [s1, d0], [s1, d1], [s0, d1]])
+
+
+def test_keeping_the_offset_stops_before_an_obstacle_on_it() -> None:
+    # Stopped at 0.7 rad to the road beside a parked car (no room to steer: the lateral QP is
+    # infeasible), a wall across the road at 60 m and a car on the held offset at 30 m.
+    points = np.column_stack((np.linspace(0.0, 100.0, 101), np.zeros(101)))
+    obstacles = (
+        PolygonObstacle("beside", _box(12.0, 20.0, -3.5, -2.3)),
+        PolygonObstacle("ahead", _box(30.0, 34.0, -1.5, -0.5)),
+        PolygonObstacle("wall", _box(60.0, 62.0, -4.0, 4.0)),
+    )
+    problem = PlanningProblem(
+        reference_line=points,
+        lane=Lane(left_width=np.full(101, 3.5), right_width=np.full(101, 3.5)),
+        ego=Ego(x=10.0, y=-1.0, heading=-0.7, speed=0.0),
+        vehicle=CAR,
+        obstacles=obstacles,
+        options=Options(horizon_time=8.0, dt=0.1),
+    )
+    result = plan(problem)
+    assert result.diagnostics.lateral_qp.status not in CONVERGED  # the hold path is what is tested
+    assert result.status == "stopped", result.message
+    # the front stops short of the car on the held offset, not of the wall
+    assert result.trajectory.s.max() + 0.5 * CAR.length < 30.0
+
+
+def test_us101_keeping_the_offset_stops_before_the_parked_car() -> None:
+    # the closed loop's state at 16.0 s: "footprint hits obstacle 418" (a parked car 18.5 m ahead on the
+    # held offset; the block is 54 m ahead), a fallback at every cycle from there on
+    ego = Ego(x=78.67763460141727, y=-66.71339440778627, heading=-1.3719129302718025, speed=0.0)
+    result = plan(_recorded("USA_US101-6_1_T-1", 16.0, ego))
+    # (steering around the car or stopping before it on the held offset: either is a safe answer)
+    assert result.status == "stopped", result.message
+    assert not result.violations
