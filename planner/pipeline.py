@@ -705,6 +705,7 @@ def plan(problem: PlanningProblem) -> PlanResult:
         knot_count = int(bounds.s.shape[0])
 
     note = ""
+    block_at = float(bounds.s[-1])  # where a block stops the path [m] (the bounds end before it)
     if qp.info.status in _USABLE:
         path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
     elif blocked is not None:
@@ -720,7 +721,8 @@ def plan(problem: PlanningProblem) -> PlanResult:
         met = np.flatnonzero(box_hits(boxes, bounds.s, hold, half_s, half_d))
         if met.size and met[0] < blocked:
             blocked, road_end = int(met[0]), False
-            note += f" (an obstacle on that offset {bounds.s[blocked] - start.s:.1f} m ahead)"
+            block_at = float(bounds.s[blocked])
+            note += " (an obstacle on that offset)"
     else:
         return fallback(f"lateral QP failed: {qp.info.status}", candidate_path, qp.info, _NOT_RUN)
     if reason := timer.overrun("lateral"):
@@ -790,7 +792,7 @@ def plan(problem: PlanningProblem) -> PlanResult:
     if road_end:
         message = f"planned; the lane ends {bounds.s[-1] - start.s:.1f} m ahead{note}"
     elif blocked is not None:
-        message = f"the road is blocked {bounds.s[-1] - start.s:.1f} m ahead; stopping before it{note}"
+        message = f"the road is blocked {block_at - start.s:.1f} m ahead; stopping before it{note}"
     else:
         message = f"planned{note}"
     diag = PlanDiagnostics(stats, qp.info, speed.info, _total(timer), ref.size, int(bounds.s.shape[0]), best)

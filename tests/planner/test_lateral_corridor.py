@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -139,6 +140,9 @@ def test_keeping_the_offset_stops_before_an_obstacle_on_it() -> None:
     assert result.status == "stopped", result.message
     # the front stops short of the car on the held offset, not of the wall
     assert result.trajectory.s.max() + 0.5 * CAR.length < 30.0
+    # and the message gives the car's distance, not the wall's (ego at s = 10 m)
+    ahead = re.search(r"blocked ([0-9.]+) m ahead", result.message)
+    assert ahead is not None and float(ahead.group(1)) < 20.0, result.message
 
 
 def test_us101_keeping_the_offset_stops_before_the_parked_car() -> None:
