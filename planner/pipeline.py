@@ -45,7 +45,7 @@ from planner.frenet import to_frenet
 from planner.problem import DynamicObstacle, PlanningProblem
 from planner.reference import FloatArray, ReferenceLine, build_reference
 from planner.trajectory import Path, Trajectory, frenet_path, polyline_path, sample
-from planner.validation import trajectory_violations
+from planner.validation import HITS, Violation, ViolationKind, trajectory_violations
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
 from solvers.result import SolveInfo, SolverStatus
 from solvers.speed import (
@@ -125,7 +125,7 @@ class PlanResult:
     trajectory: Trajectory
     candidates: CandidateSet | None
     diagnostics: PlanDiagnostics
-    violations: tuple[str, ...] = field(default=())
+    violations: tuple[Violation, ...] = field(default=())
 
 
 class _Timer:
@@ -653,11 +653,8 @@ def plan(problem: PlanningProblem) -> PlanResult:
             # slowed for a leader's headway only) are weighed too. The first that passes every check is
             # taken; else the least severe (_severity), on a tie these before braking (a harder stop
             # gives the follower less time).
-            rear = {
-                f"footprint hits moving obstacle {ob.id}"
-                for ob in followers(ref, moving_obstacles(problem), start.s)
-            }
-            hit_from_behind = [v for _, b in tried for v in b if v in rear]
+            rear = {ob.id for ob in followers(ref, moving_obstacles(problem), start.s)}
+            hit_from_behind = [v for _, b in tried for v in b if _from_behind(v, rear)]
             if hit_from_behind:
                 others = [("the planned profile", planned)] if planned is not None and planned.info.ok else []
                 others.append(
@@ -799,13 +796,18 @@ def plan(problem: PlanningProblem) -> PlanResult:
     return PlanResult(status, message, traj, cands if options.return_candidates else None, diag)
 
 
-def _severity(bad: list[str], rear: set[str]) -> tuple[int, int, int]:
+def _severity(bad: list[Violation], rear: set[str]) -> tuple[int, int, int]:
     """How bad a trajectory's failed checks ``bad`` are, to compare fallbacks: hits of obstacles other
-    than the vehicles behind (``rear``, as the checks word them), then hits from behind, then the other
-    checks (curvature, lane, …, which do not hit anything by themselves)."""
-    hits = [b for b in bad if b.startswith("footprint hits ")]
-    from_behind = sum(b in rear for b in hits)
+    than the vehicles behind (ids ``rear``), then hits from behind, then the other checks (curvature,
+    lane, …, which do not hit anything by themselves)."""
+    hits = [b for b in bad if b.kind in HITS]
+    from_behind = sum(_from_behind(b, rear) for b in hits)
     return len(hits) - from_behind, from_behind, len(bad) - len(hits)
+
+
+def _from_behind(violation: Violation, rear: set[str]) -> bool:
+    """Whether ``violation`` is a hit by one of the vehicles behind (ids ``rear``)."""
+    return violation.kind is ViolationKind.HITS_MOVING_OBSTACLE and violation.obstacle_id in rear
 
 
 def _total(timer: _Timer) -> dict[str, float]:

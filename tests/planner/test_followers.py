@@ -15,7 +15,7 @@ from planner.pipeline import PlanResult, plan, static_shapes
 from planner.problem import DynamicObstacle, Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import build_reference
 from planner.roads import straight
-from planner.validation import trajectory_violations
+from planner.validation import Violation, ViolationKind, trajectory_violations
 
 ROAD = straight(300.0, step=5.0)
 LANE = Lane(3.5, 3.5)
@@ -27,7 +27,7 @@ def _car(name: str, x0: float, speed: float, y: float | np.ndarray = 0.0) -> Dyn
     return DynamicObstacle(name, 4.5, 1.8, np.column_stack((T, x0 + speed * T, y + 0 * T, 0 * T)))
 
 
-def _violations(problem: PlanningProblem, result: PlanResult) -> list[str]:
+def _violations(problem: PlanningProblem, result: PlanResult) -> list[Violation]:
     ref = build_reference(problem.reference_line)
     return trajectory_violations(ref, problem, result.trajectory, static_shapes(problem))
 
@@ -124,6 +124,7 @@ def test_a_block_ahead_wins_over_a_car_behind() -> None:
     )
     result = plan(problem)
     assert result.status in ("stopped", "fallback")
-    assert "footprint hits obstacle wall" not in _violations(problem, result)
+    hits = [(v.kind, v.obstacle_id) for v in _violations(problem, result)]
+    assert (ViolationKind.HITS_OBSTACLE, "wall") not in hits
     assert np.all(result.trajectory.x + 0.5 * Vehicle().length < 80.0)
     assert result.trajectory.v[-1] < 1e-3
