@@ -33,7 +33,7 @@ from planner.thread_solvers import thread_solvers
 from planner.timing import StageTimer
 from planner.trajectory import Path, Trajectory, polyline_path
 from planner.validation import Violation, trajectory_violations
-from solvers.result import SolveInfo, SolverStatus
+from solvers.result import SolveInfo
 from solvers.speed import SpeedResult
 
 __all__ = ["PlanDiagnostics", "PlanResult", "Status", "plan"]
@@ -77,10 +77,8 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
         return run.fallback(
             f"speed profile failed: {sqp.info.status}", path, candidate, lateral.info, sqp.info
         )
-    braked = SolveInfo(SolverStatus.SOLVED, 0, 0.0, None, "braking profile")
-    used = sqp.info if speed.profile.kind is ProfileKind.OPTIMISED else braked
     if reason := timer.overrun("speed"):
-        return run.fallback(reason, path, candidate, lateral.info, used)
+        return run.fallback(reason, path, candidate, lateral.info, sqp.info)
 
     with timer.stage("trajectory"):
         profile, traj, bad, note = _trajectory(ref, problem, path, speed, static)
@@ -88,10 +86,9 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
         # A follower's bound may have given way to a stop or a leader: the fallback then also weighs
         # keeping speed and this profile against braking into the follower.
         reason = f"the optimised trajectory breaks a check: {bad[0]}"
-        return run.fallback(reason, path, candidate, lateral.info, used, planned=sqp)
+        return run.fallback(reason, path, candidate, lateral.info, sqp.info, planned=sqp)
     status: Status = "stopped" if lateral.stops else "ok"
-    used = sqp.info if profile.kind is ProfileKind.OPTIMISED else braked
-    return run.result(status, _message(lateral, start) + note, traj, lateral.info, used, profile.kind)
+    return run.result(status, _message(lateral, start) + note, traj, lateral.info, sqp.info, profile.kind)
 
 
 def _trajectory(
@@ -159,9 +156,10 @@ class _Run:
         planned: SpeedResult | None = None,
     ) -> PlanResult:
         """The fallback answer for ``reason`` (see :func:`planner.fallback.fallback`)."""
-        out = fallback(
-            reason, path, candidate, self.ref, self.problem, self.start, self.static, planned, self.config
-        )
+        with self.timer.stage("fallback"):
+            out = fallback(
+                reason, path, candidate, self.ref, self.problem, self.start, self.static, planned, self.config
+            )
         return self.result(
             "fallback", out.message, out.trajectory, lateral, speed, out.profile, out.violations
         )
@@ -178,6 +176,8 @@ class _Run:
     ) -> PlanResult:
         """The answer, its diagnostics timed up to now."""
         timing = self.timer.timing_ms()
-        diag = PlanDiagnostics(self.stats, lateral, speed, timing, self.ref.size, self.knots, self.best)
+        diag = PlanDiagnostics(
+            self.stats, lateral, speed, timing, self.ref.size, self.knots, self.best, profile
+        )
         cands = self.cands if self.problem.options.return_candidates else None
         return PlanResult(status, message, traj, cands, diag, violations)

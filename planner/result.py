@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from planner.candidates import CandidateSet
+from planner.speed import ProfileKind
 from planner.trajectory import Trajectory
 from planner.validation import Violation
 from solvers.result import SolveInfo, SolverStatus
@@ -40,6 +41,7 @@ class PlanDiagnostics:
         reference_samples: samples of the resampled reference line.
         knots: knots of the lateral QP (0 when it did not run).
         chosen_candidate: index of the candidate followed.
+        speed_profile: the speed profile the trajectory samples: the SQP's, or an analytic one.
     """
 
     candidates: CandidateStats
@@ -49,6 +51,7 @@ class PlanDiagnostics:
     reference_samples: int
     knots: int
     chosen_candidate: int | None
+    speed_profile: ProfileKind
 
 
 @dataclass(frozen=True)
