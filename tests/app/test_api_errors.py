@@ -15,7 +15,7 @@ from app.main import create_app
 from app.routes import candidates as candidates_route
 from app.routes import coordinates as coordinates_route
 from app.settings import Settings
-from planner.errors import PlanningError
+from planner.errors import PlannerError
 
 
 def error_fields(response: Any) -> list[str]:
@@ -233,14 +233,14 @@ def test_ego_past_the_end(client: TestClient, demo: dict[str, Any]) -> None:
     _expect(_post(client, demo), 422, "invalid_input", "ego")
 
 
-def test_planning_error_is_422(
+def test_planner_error_is_422(
     client: TestClient, demo: dict[str, Any], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     def fail(*args: Any, **kwargs: Any) -> Any:
-        raise PlanningError("no way through", field="obstacles")
+        raise PlannerError("no way through", field="obstacles")
 
     monkeypatch.setattr(candidates_route, "generate_candidates", fail)
-    _expect(_post(client, demo), 422, "planning_failed", "obstacles")
+    _expect(_post(client, demo), 422, "planner_error", "obstacles")
 
 
 def test_bug_is_a_logged_500(
