@@ -20,6 +20,7 @@ for the diagnostics.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -111,11 +112,36 @@ def speed_limit(path: Path, problem: PlanningProblem, config: PlannerConfig = DE
     return np.asarray(minimum_filter1d(np.minimum(target_speed(problem), lateral), size=size, mode="nearest"))
 
 
-def _start(problem: PlanningProblem) -> tuple[float, float]:
-    """The profile's initial speed [m/s] and acceleration [m/s²] (within the vehicle's limits)."""
+def _speed_problem(
+    path: Path,
+    problem: PlanningProblem,
+    steps: int,
+    dt: float,
+    jerk_max: float,
+    limit_v: FloatArray,
+    v_target: float,
+    s_stop: float = math.inf,
+    s_upper: FloatArray | None = None,
+    s_lower: FloatArray | None = None,
+) -> SpeedProblem:
+    """The speed problem along ``path`` from the ego's speed and acceleration (that within the vehicle's
+    limits), with the speed limit ``limit_v`` [m/s] at the path's knots, the target ``v_target`` [m/s]
+    and the bounds on ``σ`` [m] (see :class:`solvers.speed.SpeedProblem`)."""
     v = problem.vehicle
-    return max(problem.ego.speed, 0.0), float(
-        np.clip(problem.ego.acceleration, -v.max_deceleration, v.max_acceleration)
+    return SpeedProblem(
+        dt=dt,
+        steps=steps,
+        v0=max(problem.ego.speed, 0.0),
+        a0=float(np.clip(problem.ego.acceleration, -v.max_deceleration, v.max_acceleration)),
+        limit_s=path.sigma,
+        limit_v=limit_v,
+        v_target=v_target,
+        a_min=-v.max_deceleration,
+        a_max=v.max_acceleration,
+        jerk_max=jerk_max,
+        s_stop=s_stop,
+        s_upper=s_upper,
+        s_lower=s_lower,
     )
 
 
@@ -145,19 +171,15 @@ def _solve(
     jerk_max: float,
     config: PlannerConfig,
 ) -> SpeedResult:
-    v = problem.vehicle
-    v0, a0 = _start(problem)
-    sp = SpeedProblem(
-        dt=dt,
-        steps=steps,
-        v0=v0,
-        a0=a0,
-        limit_s=path.sigma,
-        limit_v=speed_limit(path, problem, config),
-        v_target=target_speed(problem),
-        a_min=-v.max_deceleration,
-        a_max=v.max_acceleration,
-        jerk_max=jerk_max,
+    limit = speed_limit(path, problem, config)
+    sp = _speed_problem(
+        path,
+        problem,
+        steps,
+        dt,
+        jerk_max,
+        limit,
+        target_speed(problem),
         s_stop=s_stop,
         s_upper=bounds.upper,
         s_lower=bounds.lower,
@@ -206,20 +228,7 @@ def braking(
     """Full braking within the emergency jerk along ``path`` (the fallback's speed profile); with
     ``keep_speed``, the acceleration released as fast and the speed kept instead (the fallback's
     alternative when braking is hit from behind). Analytic: nothing is solved."""
-    v = problem.vehicle
-    v0, a0 = _start(problem)
-    sp = SpeedProblem(
-        dt=dt,
-        steps=steps,
-        v0=v0,
-        a0=a0,
-        limit_s=path.sigma,
-        limit_v=np.zeros_like(path.sigma),
-        v_target=0.0,
-        a_min=-v.max_deceleration,
-        a_max=v.max_acceleration,
-        jerk_max=config.emergency_jerk,
-    )
+    sp = _speed_problem(path, problem, steps, dt, config.emergency_jerk, np.zeros_like(path.sigma), 0.0)
     jerk = cruise_profile(sp) if keep_speed else braking_profile(sp)
     s, vel, a = integrate_jerk(dt, 0.0, sp.v0, sp.a0, jerk)
     t = np.arange(steps + 1, dtype=np.float64) * dt

@@ -11,7 +11,7 @@ arc length ``σ`` [m] of the vehicle's centre along it at the profile's knot tim
   the box at any time in ``[t_k, t_k + follower_headway]``, plus ``stop_gap`` (:func:`follower_bound`; a
   soft bound in the speed profile).
 
-Only obstacles that come near the path at some time are mapped by TransF-κ (:func:`_near_path`): in
+Only obstacles that come near the path at some time are mapped by TransF-κ (:meth:`Along.near`): in
 dense traffic mapping the others would be most of the stage's cost.
 """
 
@@ -75,75 +75,73 @@ def space_time_bounds(
     if not movers:
         return SpaceTimeBounds(None, None)
     speed, gap = config.speed, config.stop_gap
-    tree = cKDTree(np.column_stack((path.x, path.y)))
+    along = Along.of(ref, path, problem, config)
     # where an obstacle was a headway ago, not where it is: a gap that grows with its speed
-    upper = space_time_bound(
-        ref, path, tree, movers, problem, np.maximum(t - speed.headway, 0.0), start_s, config
-    )
-    lower = follower_bound(ref, path, tree, movers, problem, t, speed.follower_headway, start_s, config)
+    upper = space_time_bound(along, movers, np.maximum(t - speed.headway, 0.0), start_s)
+    lower = follower_bound(along, movers, t, speed.follower_headway, start_s, problem.ego.speed)
     return SpaceTimeBounds(
         upper=None if upper is None else np.maximum(upper - gap, 0.0),
         lower=None if lower is None else lower + gap,
     )
 
 
-def _near_path(
-    tree: cKDTree,
-    own: float,
-    movers: list[DynamicObstacle],
-    t: FloatArray,
-    config: PlannerConfig,
-) -> tuple[NDArray[np.intp], list[FloatArray]]:
-    """Which of ``movers`` come near the path (its knots in ``tree``) at some time of ``t`` [s], and every
-    mover's states there (shape (T, 3) each). "Near": within twice the reach of the footprint (``own``
-    [m], its half-diagonal) and of the largest obstacle, plus a knot spacing (generous: a Frenet box may
-    be larger than the shape it bounds)."""
-    states = [prediction_at(ob, t) for ob in movers]
-    largest = max(float(np.hypot(ob.length, ob.width)) for ob in movers)
-    reach = 2.0 * (own + largest) + config.lateral.knot_spacing
-    dist, _ = tree.query(np.concatenate(states)[:, :2], distance_upper_bound=reach)  # one query for all
-    near = np.flatnonzero(np.isfinite(dist).reshape(len(movers), -1).any(axis=1))
-    return near, states
+@dataclass(frozen=True)
+class Along:
+    """The path as the moving obstacles' bounds see it: its knots in a k-d tree for the near-the-path
+    filter, and the footprint's half-extents on them [m] (aligned with the reference, with
+    ``obstacle_margin`` around it)."""
 
+    ref: ReferenceLine
+    path: Path
+    tree: cKDTree
+    half_s: FloatArray
+    half_d: FloatArray
+    knot_spacing: float
 
-def _footprint_meets(
-    path: Path,
-    half_s: FloatArray,
-    half_d: FloatArray,
-    boxes: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
-) -> NDArray[np.bool_]:
-    """Whether the footprint on each knot of ``path`` meets each obstacle's box at each time:
-    ``boxes`` are :func:`frenet_extents` (each (K, T)); the answer has shape (K, T, knots)."""
-    s_min, s_max, d_min, d_max = (b[..., None] for b in boxes)
-    return boxes_overlap(
-        path.s[None, None, :], path.d[None, None, :], half_s, half_d, s_min, s_max, d_min, d_max
-    )
+    @classmethod
+    def of(cls, ref: ReferenceLine, path: Path, problem: PlanningProblem, config: PlannerConfig) -> Along:
+        half_s, half_d = vehicle_extent(np.zeros_like(path.s), problem.vehicle, config.obstacle_margin)
+        tree = cKDTree(np.column_stack((path.x, path.y)))
+        return cls(ref, path, tree, half_s, half_d, config.lateral.knot_spacing)
+
+    def near(self, movers: list[DynamicObstacle], t: FloatArray) -> tuple[NDArray[np.intp], list[FloatArray]]:
+        """Which of ``movers`` come near the path at some time of ``t`` [s], and every mover's states then
+        (shape (T, 3) each). "Near": within twice the reach of the footprint (its half-diagonal) and of
+        the largest obstacle, plus a knot spacing (generous: a Frenet box may be larger than the shape it
+        bounds)."""
+        states = [prediction_at(ob, t) for ob in movers]
+        own = float(np.hypot(self.half_s[0], self.half_d[0]))
+        largest = max(float(np.hypot(ob.length, ob.width)) for ob in movers)
+        reach = 2.0 * (own + largest) + self.knot_spacing
+        dist, _ = self.tree.query(np.concatenate(states)[:, :2], distance_upper_bound=reach)  # one query
+        near = np.flatnonzero(np.isfinite(dist).reshape(len(movers), -1).any(axis=1))
+        return near, states
+
+    def meets(self, boxes: tuple[FloatArray, FloatArray, FloatArray, FloatArray]) -> NDArray[np.bool_]:
+        """Whether the footprint on each knot meets each obstacle's box at each time: ``boxes`` are
+        :func:`frenet_extents` (each (K, T)); the answer has shape (K, T, knots)."""
+        s_min, s_max, d_min, d_max = (b[..., None] for b in boxes)
+        s, d = self.path.s[None, None, :], self.path.d[None, None, :]
+        return boxes_overlap(s, d, self.half_s, self.half_d, s_min, s_max, d_min, d_max)
 
 
 def space_time_bound(
-    ref: ReferenceLine,
-    path: Path,
-    tree: cKDTree,
-    movers: list[DynamicObstacle],
-    problem: PlanningProblem,
-    t: FloatArray,
-    start_s: float,
-    config: PlannerConfig = DEFAULT_CONFIG,
+    along: Along, movers: list[DynamicObstacle], t: FloatArray, start_s: float
 ) -> FloatArray | None:
     """``σ_max(t_k)`` [m]: how far along the path the vehicle's centre may be at each time so that its
     footprint stays clear of every moving obstacle's box (follow or yield). Obstacles behind the ego
     at the start are not followed: one coming from behind is the follower's to avoid (braking for it as
     it overtakes would invite a rear-end collision)."""
-    half_s, half_d = vehicle_extent(np.zeros_like(path.s), problem.vehicle, config.obstacle_margin)
-    near, states = _near_path(tree, float(np.hypot(half_s[0], half_d[0])), movers, t, config)
+    near, states = along.near(movers, t)
     if near.size == 0:
         return None
-    boxes = frenet_extents(ref, [movers[k] for k in near], [states[k] for k in near])  # (K, T) each
+    boxes = frenet_extents(along.ref, [movers[k] for k in near], [states[k] for k in near])  # (K, T) each
     s_min, s_max = boxes[0], boxes[1]
     ahead = (0.5 * (s_min[:, :1] + s_max[:, :1]) > start_s) | (s_min[:, :1] > start_s)
-    hit = _footprint_meets(path, half_s, half_d, boxes)
+    hit = along.meets(boxes)
+    sigma = along.path.sigma
     first = np.where(hit.any(axis=2), np.argmax(hit, axis=2), -1)
-    limit = np.where(first > 0, path.sigma[np.maximum(first - 1, 0)], np.where(first == 0, 0.0, np.inf))
+    limit = np.where(first > 0, sigma[np.maximum(first - 1, 0)], np.where(first == 0, 0.0, np.inf))
     limit = np.where(ahead, limit, np.inf)
     return np.asarray(limit.min(axis=0))
 
@@ -180,15 +178,12 @@ def followers(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float)
 
 
 def follower_bound(
-    ref: ReferenceLine,
-    path: Path,
-    tree: cKDTree,
+    along: Along,
     movers: list[DynamicObstacle],
-    problem: PlanningProblem,
     t: FloatArray,
     headway: float,
     start_s: float,
-    config: PlannerConfig = DEFAULT_CONFIG,
+    ego_speed: float,
 ) -> FloatArray | None:
     """``σ_min(t_k)`` [m] at the knot times ``t`` (evenly spaced) [s]: how far along the path the
     vehicle's centre must be for its footprint to be ahead of the boxes of the moving obstacles behind it
@@ -196,29 +191,29 @@ def follower_bound(
     to the knot spacing); ``−inf`` where free, ``None`` when free throughout.
 
     A vehicle bounds from the first time its box meets the footprint anywhere along the path, if it is
-    then behind where the ego would be at its current speed, and for as long as it keeps meeting it:
-    one that enters the path ahead (a cut-in after overtaking) or comes back after leaving it is not
-    chased. At each time the bound is the knot after the last one whose footprint it meets.
+    then behind where the ego would be at its current speed ``ego_speed`` [m/s], and for as long as it
+    keeps meeting it: one that enters the path ahead (a cut-in after overtaking) or comes back after
+    leaving it is not chased. At each time the bound is the knot after the last one whose footprint it
+    meets.
     """
     window = int(np.ceil(headway / float(t[1] - t[0]) - 1e-9))  # steps of the headway; t: ≥ 2 times
     t = t[0] + (t[1] - t[0]) * np.arange(t.size + window)  # the knots and the headway beyond them
-    half_s, half_d = vehicle_extent(np.zeros_like(path.s), problem.vehicle, config.obstacle_margin)
-    near, states = _near_path(tree, float(np.hypot(half_s[0], half_d[0])), movers, t, config)
-    chosen = near[_behind(ref, [movers[k] for k in near], start_s)]
+    near, states = along.near(movers, t)
+    chosen = near[_behind(along.ref, [movers[k] for k in near], start_s)]
     if chosen.size == 0:
         return None
-    boxes = frenet_extents(ref, [movers[k] for k in chosen], [states[k] for k in chosen])
+    boxes = frenet_extents(along.ref, [movers[k] for k in chosen], [states[k] for k in chosen])
     s_max = boxes[1]
-    hit = _footprint_meets(path, half_s, half_d, boxes)  # (K, T, knots)
+    hit = along.meets(boxes)  # (K, T, knots)
     meets = hit.any(axis=2)  # (K, T)
     first = np.argmax(meets, axis=1)
     rows = np.arange(meets.shape[0])
-    behind_then = s_max[rows, first] <= start_s + max(problem.ego.speed, 0.0) * t[first]
+    behind_then = s_max[rows, first] <= start_s + max(ego_speed, 0.0) * t[first]
     after = np.arange(meets.shape[1])[None, :] >= first[:, None]
     active = meets & ~(np.cumsum(after & ~meets, axis=1) > 0) & behind_then[:, None]  # the first run only
     if not active.any():
         return None
     last = hit.shape[2] - 1 - np.argmax(hit[..., ::-1], axis=2)  # last knot met, (K, T)
-    at = np.where(active, path.sigma[np.minimum(last + 1, hit.shape[2] - 1)], -np.inf).max(axis=0)
+    at = np.where(active, along.path.sigma[np.minimum(last + 1, hit.shape[2] - 1)], -np.inf).max(axis=0)
     bound = sliding_window_view(at, window + 1).max(axis=1)  # the most ahead over each [t_k, t_k + headway]
     return np.asarray(bound)
