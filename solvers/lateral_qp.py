@@ -64,16 +64,17 @@ import math
 import threading
 import time
 from collections import OrderedDict
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
 import osqp
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from solvers.result import SolveInfo, SolverStatus
+from solvers.validation import check_ordered, check_weights, float_array, integer, scalar
 
 FloatArray = NDArray[np.float64]
 
@@ -117,53 +118,7 @@ class LateralWeights:
     end_curvature: float = 1000.0
 
     def __post_init__(self) -> None:
-        for name in self.__dataclass_fields__:
-            value = getattr(self, name)
-            if not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
-                raise ValueError(f"weights.{name}: must be a finite number ≥ 0, got {value!r}")
-            object.__setattr__(self, name, float(value))
-
-
-def _finite_scalar(name: str, value: object) -> float:
-    try:
-        result = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: must be a number, got {value!r}") from None
-    if not math.isfinite(result):
-        raise ValueError(f"{name}: must be finite, got {result}")
-    return result
-
-
-def _knot_array(name: str, value: ArrayLike, n: int, *, bound: str | None = None) -> FloatArray:
-    """A read-only float64 copy of ``value``, checked to be shape ``(n,)``.
-
-    ``bound`` is ``"lower"`` (``−∞`` allowed), ``"upper"`` (``+∞`` allowed) or ``None`` (all finite).
-    """
-    try:
-        array = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: must be an array of numbers") from None
-    if array.shape != (n,):
-        raise ValueError(f"{name}: expected shape ({n},), got {array.shape}")
-    if np.isnan(array).any():
-        raise ValueError(f"{name}: contains NaN at knot {int(np.flatnonzero(np.isnan(array))[0])}")
-    if bound == "lower":
-        bad = np.isposinf(array)
-    elif bound == "upper":
-        bad = np.isneginf(array)
-    else:
-        bad = ~np.isfinite(array)
-    if bad.any():
-        raise ValueError(f"{name}: non-finite value {array[bad][0]} at knot {int(np.flatnonzero(bad)[0])}")
-    array.setflags(write=False)
-    return array
-
-
-def _check_ordered(lower_name: str, lower: FloatArray, upper_name: str, upper: FloatArray) -> None:
-    bad = lower > upper
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"{lower_name} > {upper_name} at knot {i}: {lower[i]} > {upper[i]}")
+        check_weights(self, zero_allowed=[entry.name for entry in fields(self)])
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -206,16 +161,13 @@ class LateralQPProblem:
         def put(name: str, value: object) -> None:
             object.__setattr__(self, name, value)
 
-        ds = _finite_scalar("ds", self.ds)
+        ds = scalar("ds", self.ds)
         if ds <= 0:
             raise ValueError(f"ds: must be > 0, got {ds}")
         put("ds", ds)
 
-        try:
-            jerk_max = float(self.jerk_max)
-        except (TypeError, ValueError):
-            raise ValueError(f"jerk_max: must be a number, got {self.jerk_max!r}") from None
-        if math.isnan(jerk_max) or jerk_max <= 0:
+        jerk_max = scalar("jerk_max", self.jerk_max, allow_posinf=True)
+        if jerk_max <= 0:
             raise ValueError(f"jerk_max: must be > 0 (or +inf), got {jerk_max}")
         put("jerk_max", jerk_max)
 
@@ -223,26 +175,26 @@ class LateralQPProblem:
         if d_ref_raw.ndim != 1 or d_ref_raw.shape[0] < 3:
             raise ValueError(f"d_ref: expected a 1-D array of at least 3 knots, got shape {d_ref_raw.shape}")
         n = int(d_ref_raw.shape[0])
-        put("d_ref", _knot_array("d_ref", self.d_ref, n))
-        put("d_lower", _knot_array("d_lower", self.d_lower, n, bound="lower"))
-        put("d_upper", _knot_array("d_upper", self.d_upper, n, bound="upper"))
-        _check_ordered("d_lower", self.d_lower, "d_upper", self.d_upper)
+        put("d_ref", float_array("d_ref", self.d_ref, size=n, item="knot"))
+        put("d_lower", float_array("d_lower", self.d_lower, size=n, allow_neginf=True, item="knot"))
+        put("d_upper", float_array("d_upper", self.d_upper, size=n, allow_posinf=True, item="knot"))
+        check_ordered("d_lower", self.d_lower, "d_upper", self.d_upper)
         for prefix in ("dd", "ddd"):
             lower_name, upper_name = f"{prefix}_lower", f"{prefix}_upper"
             lower, upper = getattr(self, lower_name), getattr(self, upper_name)
             if lower is not None:
-                lower = _knot_array(lower_name, lower, n, bound="lower")
+                lower = float_array(lower_name, lower, size=n, allow_neginf=True, item="knot")
                 put(lower_name, lower)
             if upper is not None:
-                upper = _knot_array(upper_name, upper, n, bound="upper")
+                upper = float_array(upper_name, upper, size=n, allow_posinf=True, item="knot")
                 put(upper_name, upper)
             if lower is not None and upper is not None:
-                _check_ordered(lower_name, lower, upper_name, upper)
+                check_ordered(lower_name, lower, upper_name, upper)
 
         for name in ("d0", "dd0", "ddd0"):
-            put(name, _finite_scalar(name, getattr(self, name)))
+            put(name, scalar(name, getattr(self, name)))
         if self.end_d is not None:
-            put("end_d", _finite_scalar("end_d", self.end_d))
+            put("end_d", scalar("end_d", self.end_d))
         if not isinstance(self.weights, LateralWeights):
             raise ValueError(f"weights: expected LateralWeights, got {type(self.weights).__name__}")
 
@@ -741,8 +693,7 @@ class LateralQPSolver:
         start = time.perf_counter()
         if not isinstance(problem, LateralQPProblem):
             raise ValueError(f"problem: expected LateralQPProblem, got {type(problem).__name__}")
-        if isinstance(max_iter, bool) or not isinstance(max_iter, int | np.integer) or max_iter < 1:
-            raise ValueError(f"max_iter: must be an integer ≥ 1, got {max_iter!r}")
+        max_iter = integer("max_iter", max_iter, low=1)
         if time_limit_s is None:
             limit = _NO_TIME_LIMIT_S
         else:

@@ -141,6 +141,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from solvers.result import SolveInfo, SolverStatus
+from solvers.validation import check_weights, float_array, integer, scalar
 
 FloatArray = NDArray[np.float64]
 
@@ -241,47 +242,7 @@ class SpeedWeights:
     follower_violation: float = 1e2
 
     def __post_init__(self) -> None:
-        for name in self.__dataclass_fields__:
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-                raise ValueError(f"weights.{name}: must be a finite number, got {value!r}")
-            positive = name != "acceleration"
-            if value < 0 or (positive and value == 0):
-                raise ValueError(f"weights.{name}: must be {'> 0' if positive else '≥ 0'}, got {value!r}")
-            object.__setattr__(self, name, float(value))
-
-
-def _scalar(name: str, value: object, *, allow_posinf: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        raise ValueError(f"{name}: must be a number, got {value!r}")
-    try:
-        result = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: must be a number, got {value!r}") from None
-    if math.isnan(result) or result == -math.inf or (result == math.inf and not allow_posinf):
-        raise ValueError(f"{name}: must be finite{' or +inf' if allow_posinf else ''}, got {result}")
-    return result
-
-
-def _array(
-    name: str, value: ArrayLike, *, allow_posinf: bool = False, allow_neginf: bool = False
-) -> FloatArray:
-    try:
-        array = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: must be an array of numbers") from None
-    if array.ndim != 1:
-        raise ValueError(f"{name}: expected a 1-D array, got shape {array.shape}")
-    bad = np.isnan(array)
-    if not allow_posinf:
-        bad |= np.isposinf(array)
-    if not allow_neginf:
-        bad |= np.isneginf(array)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"{name}: invalid value {array[i]} at index {i}")
-    array.setflags(write=False)
-    return array
+        check_weights(self, zero_allowed=("acceleration",))
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -332,17 +293,14 @@ class SpeedProblem:
         def put(name: str, value: object) -> None:
             object.__setattr__(self, name, value)
 
-        dt = _scalar("dt", self.dt)
+        dt = scalar("dt", self.dt)
         if dt <= 0:
             raise ValueError(f"dt: must be > 0, got {dt}")
         put("dt", dt)
-        steps = self.steps
-        if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or not 1 <= steps <= MAX_STEPS:
-            raise ValueError(f"steps: must be an integer in 1 … {MAX_STEPS}, got {steps!r}")
-        put("steps", int(steps))
+        put("steps", integer("steps", self.steps, low=1, high=MAX_STEPS))
         for name in ("v0", "v_target", "a_min", "a_max", "jerk_max", "s0", "a0"):
-            put(name, _scalar(name, getattr(self, name)))
-        put("s_stop", _scalar("s_stop", self.s_stop, allow_posinf=True))
+            put(name, scalar(name, getattr(self, name)))
+        put("s_stop", scalar("s_stop", self.s_stop, allow_posinf=True))
         for name, value, ok, rule in (
             ("v0", self.v0, self.v0 >= 0, "≥ 0"),
             ("v_target", self.v_target, self.v_target >= 0, "≥ 0"),
@@ -353,12 +311,10 @@ class SpeedProblem:
             if not ok:
                 raise ValueError(f"{name}: must be {rule}, got {value}")
 
-        limit_s = _array("limit_s", self.limit_s)
-        limit_v = _array("limit_v", self.limit_v)
+        limit_s = float_array("limit_s", self.limit_s)
         if limit_s.size < 1:
             raise ValueError("limit_s: must have at least one point")
-        if limit_v.shape != limit_s.shape:
-            raise ValueError(f"limit_v: expected shape {limit_s.shape} (as limit_s), got {limit_v.shape}")
+        limit_v = float_array("limit_v", self.limit_v, size=limit_s.size)
         steps_s = np.diff(limit_s)
         if np.any(steps_s <= 0):
             i = int(np.flatnonzero(steps_s <= 0)[0]) + 1
@@ -368,16 +324,11 @@ class SpeedProblem:
             raise ValueError(f"limit_v: must be ≥ 0 (index {i}: {limit_v[i]})")
         put("limit_s", limit_s)
         put("limit_v", limit_v)
+        knots = self.steps + 1
         if self.s_upper is not None:
-            s_upper = _array("s_upper", self.s_upper, allow_posinf=True)
-            if s_upper.shape != (self.steps + 1,):
-                raise ValueError(f"s_upper: expected shape ({self.steps + 1},), got {s_upper.shape}")
-            put("s_upper", s_upper)
+            put("s_upper", float_array("s_upper", self.s_upper, size=knots, allow_posinf=True))
         if self.s_lower is not None:
-            s_lower = _array("s_lower", self.s_lower, allow_neginf=True)
-            if s_lower.shape != (self.steps + 1,):
-                raise ValueError(f"s_lower: expected shape ({self.steps + 1},), got {s_lower.shape}")
-            put("s_lower", s_lower)
+            put("s_lower", float_array("s_lower", self.s_lower, size=knots, allow_neginf=True))
         if not isinstance(self.weights, SpeedWeights):
             raise ValueError(f"weights: expected SpeedWeights, got {type(self.weights).__name__}")
 
@@ -1121,15 +1072,11 @@ class SpeedSolver:
             raise ValueError(f"qp_residual: must be in (0, 1), got {qp_residual!r}")
         if not 0 < restore_violation < math.inf:
             raise ValueError(f"restore_violation: must be a finite number > 0, got {restore_violation!r}")
-        if isinstance(max_iterations, bool) or not isinstance(max_iterations, int) or max_iterations < 1:
-            raise ValueError(f"max_iterations: must be an integer ≥ 1, got {max_iterations!r}")
-        if isinstance(tolerance, bool) or not isinstance(tolerance, int | float) or not 0 < tolerance < 1e300:
-            raise ValueError(f"tolerance: must be a finite number > 0, got {tolerance!r}")
-        if isinstance(max_cached, bool) or not isinstance(max_cached, int) or max_cached < 1:
-            raise ValueError(f"max_cached: must be an integer ≥ 1, got {max_cached!r}")
-        self._max_iterations = max_iterations
-        self._tolerance = float(tolerance)
-        self._max_cached = max_cached
+        self._max_iterations = integer("max_iterations", max_iterations, low=1)
+        self._tolerance = scalar("tolerance", tolerance)
+        if self._tolerance <= 0:
+            raise ValueError(f"tolerance: must be > 0, got {tolerance!r}")
+        self._max_cached = integer("max_cached", max_cached, low=1)
         self._restore_violation = float(restore_violation)
         self._qp_residual = float(qp_residual)
         self._qps: OrderedDict[tuple[int, float, SpeedWeights, bool], _QP] = OrderedDict()
@@ -1174,12 +1121,11 @@ class SpeedSolver:
             raise ValueError(f"problem: expected SpeedProblem, got {type(problem).__name__}")
         if warm_start is not None and not isinstance(warm_start, SpeedResult):
             raise ValueError(f"warm_start: expected SpeedResult or None, got {type(warm_start).__name__}")
-        if isinstance(shift, bool) or not isinstance(shift, int | np.integer) or shift < 0:
-            raise ValueError(f"shift: must be an integer ≥ 0, got {shift!r}")
+        shift = integer("shift", shift, low=0)
 
         qp = self._qp(problem)
         if warm_start is not None and warm_start.t.size >= 2:
-            (s_bar, v_end), origin = _shifted(problem, warm_start, int(shift)), "warm"
+            (s_bar, v_end), origin = _shifted(problem, warm_start, shift), "warm"
         else:
             (s_bar, v_end), origin = _cold_start(problem), "cold"
         self._set_bounds(problem, qp)
