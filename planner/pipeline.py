@@ -586,7 +586,7 @@ def _braking(
 
 @dataclass
 class _Solvers:
-    lateral: LateralQPSolver = field(default_factory=lambda: LateralQPSolver(refine_steps=0))
+    lateral: LateralQPSolver = field(default_factory=LateralQPSolver)
     speed: SpeedSolver = field(
         default_factory=lambda: SpeedSolver(
             max_iterations=2, tolerance=1e-3, restore_violation=SPEED_SLACK, qp_residual=1e-6
