@@ -35,7 +35,7 @@ from planner.problem import (
 )
 from planner.roads import demo_problem, straight
 from solvers.lateral_qp import LateralQPProblem, LateralQPSolver
-from solvers.speed import SpeedProblem
+from solvers.speed_problem import SpeedProblem
 
 
 def timings(fn: Callable[[], object], repeats: int) -> np.ndarray:

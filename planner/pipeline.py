@@ -48,14 +48,9 @@ from planner.trajectory import Path, Trajectory, frenet_path, polyline_path, sam
 from planner.validation import trajectory_violations
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
 from solvers.result import SolveInfo, SolverStatus
-from solvers.speed import (
-    SpeedProblem,
-    SpeedResult,
-    SpeedSolver,
-    braking_profile,
-    cruise_profile,
-    integrate_jerk,
-)
+from solvers.speed_problem import SpeedProblem, SpeedResult, integrate_jerk
+from solvers.speed_profiles import braking_profile, cruise_profile
+from solvers.speed_sqp import SpeedSolver
 
 Status = Literal["ok", "stopped", "fallback"]
 
