@@ -51,11 +51,6 @@ class SolverStatus(StrEnum):
         """True when the solver converged (status in :data:`CONVERGED`)."""
         return self in CONVERGED
 
-    @property
-    def ok(self) -> bool:
-        """True when the solution can be used (``solved`` or ``solved_inaccurate``)."""
-        return self.converged
-
 
 #: statuses whose returned iterate the caller may use after its own checks
 USABLE: frozenset[SolverStatus] = frozenset(
@@ -118,8 +113,3 @@ class SolveInfo:
     def converged(self) -> bool:
         """True when the solver converged (status in :data:`CONVERGED`)."""
         return self.status.converged
-
-    @property
-    def ok(self) -> bool:
-        """True when the solution can be used (status ``solved`` or ``solved_inaccurate``)."""
-        return self.status.ok

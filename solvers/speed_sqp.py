@@ -23,9 +23,10 @@ Statuses (:class:`~solvers.result.SolverStatus`):
   would avoid;
 * ``solved_inaccurate``: the best iterate, a valid profile whose violations are reported truthfully, when
   the model converged at a QP that HPIPM stopped early, when the line search found no decrease, when a
-  later QP failed, when a violation remains although a full stop meets every constraint, or after
-  ``max_iterations`` QPs without convergence (it happens where a sharp convex kink of ``v_lim``, a
-  V-shaped dip, has to be crossed by many knots, one or two per iteration);
+  later QP failed, or when a violation remains although a full stop meets every constraint;
+* ``max_iterations``: the best iterate after ``max_iterations`` QPs without convergence (it happens where a
+  sharp convex kink of ``v_lim``, a V-shaped dip, has to be crossed by many knots, one or two per
+  iteration);
 * ``failed``: no QP gave a usable iterate (HPIPM failed or CasADi raised): the braking profile.
 """
 
@@ -325,7 +326,9 @@ class SpeedSolver:
             jerk = braking_profile(problem)
             notes.append("returned the braking profile (not a solution)")
         else:
-            if kept.stop == "converged" and kept.exact and not violation_remains:
+            if kept.stop == "max_iterations":
+                status = SolverStatus.MAX_ITERATIONS
+            elif kept.stop == "converged" and kept.exact and not violation_remains:
                 status = SolverStatus.SOLVED
             else:
                 status = SolverStatus.SOLVED_INACCURATE

@@ -67,7 +67,7 @@ def test_demo_plans_from_the_ego(client: TestClient, demo: dict[str, Any]) -> No
     assert diag["candidates"]["generated"] == options["num_candidates"]
     assert 0 < diag["candidates"]["collision_free"] <= diag["candidates"]["generated"]
     assert diag["lateral_qp"]["status"] in ("solved", "solved_inaccurate")
-    assert diag["speed"]["status"] in ("solved", "solved_inaccurate")
+    assert SolverStatus(diag["speed"]["status"]).usable  # converged, or the best iterate of the SQP
     assert set(diag["timing_ms"]) == TIMING_KEYS
     timing = diag["timing_ms"]
     assert timing["total"] >= timing["reference"] + timing["candidates"] + timing["lateral"]

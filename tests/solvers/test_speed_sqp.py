@@ -537,6 +537,26 @@ def test_timing_is_reported() -> None:
     assert result.info.setup_time_ms > 0.0
 
 
+def test_running_out_of_iterations_is_max_iterations() -> None:
+    """A sharp convex kink of the limit needs more SQP iterations than one: the best iterate comes back as
+    ``max_iterations``, usable but not converged, with its cost and its violations."""
+    problem = make_problem(
+        limit_s=[0.0, 30.0, 32.0, 200.0], limit_v=[10.0, 10.0, 4.0, 4.0], v0=9.0, jerk_max=8.0, a_min=-8.0
+    )
+    result = SpeedSolver(max_iterations=1).solve(problem)
+    assert_valid(problem, result)
+    assert result.info.status is SolverStatus.MAX_ITERATIONS
+    assert result.info.usable and not result.info.converged
+    assert result.info.extras["stop"] == "max_iterations" and result.info.extras["returned"] == "solution"
+    assert result.qp_solves == 1 and result.info.objective is not None
+    assert result.info.objective == pytest.approx(
+        objective(problem, result.s, result.v, result.a, result.jerk)
+    )
+    converged = SpeedSolver().solve(problem)
+    assert converged.info.status is SolverStatus.SOLVED and converged.info.extras["stop"] == "converged"
+    assert converged.qp_solves > 1
+
+
 def test_a_qp_stopped_early_is_used_but_never_solved(monkeypatch: pytest.MonkeyPatch) -> None:
     solve = SpeedQP.solve
 
