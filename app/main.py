@@ -1,8 +1,9 @@
 """The application factory: ``uvicorn app.main:app`` serves :data:`app`.
 
 Routes live in :mod:`app.routes` (one module per resource), error answers in :mod:`app.errors`,
-request and response models in :mod:`app.schemas`, settings in :mod:`app.settings`, where plans run
-in :mod:`app.executor`, logs and metrics in :mod:`app.logs` and :mod:`app.metrics`.
+request and response models in :mod:`app.models` (their limits in :mod:`app.limits`, conversions to
+the planner in :mod:`app.conversions`), settings in :mod:`app.settings`, where plans run in
+:mod:`app.executor`, logs and metrics in :mod:`app.logs` and :mod:`app.metrics`.
 """
 
 from __future__ import annotations

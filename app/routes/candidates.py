@@ -7,15 +7,10 @@ from typing import Annotated
 import numpy as np
 from fastapi import APIRouter, Body
 
+from app.conversions import candidate_data, demo_request, to_problem
 from app.errors import ERROR_RESPONSES
-from app.schemas import (
-    CandidatesDiagnostics,
-    CandidatesResponse,
-    PlanningRequest,
-    candidate_data,
-    demo_request,
-    to_problem,
-)
+from app.models.candidates import CandidatesDiagnostics, CandidatesResponse
+from app.models.planning import PlanningRequest
 from planner.candidates import ego_frenet, generate_candidates
 from planner.reference import build_reference
 

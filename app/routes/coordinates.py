@@ -7,14 +7,9 @@ from typing import Annotated, Any
 import numpy as np
 from fastapi import APIRouter, Body
 
+from app.conversions import demo_request
 from app.errors import ERROR_RESPONSES
-from app.schemas import (
-    CartesianRequest,
-    CartesianResponse,
-    FrenetRequest,
-    FrenetResponse,
-    demo_request,
-)
+from app.models.coordinates import CartesianRequest, CartesianResponse, FrenetRequest, FrenetResponse
 from planner.frenet import to_cartesian, to_frenet
 from planner.reference import build_reference
 

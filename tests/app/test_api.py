@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from app.schemas import from_problem, to_problem
+from app.conversions import from_problem, to_problem
 from planner.roads import demo_problem
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "data" / "commonroad"

@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from app.schemas import (
+from app.limits import (
     MAX_OBSTACLE_OUTLINE,
     MIN_OBSTACLE_SIZE,
     MIN_VEHICLE_ACCELERATION,

@@ -16,8 +16,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app.main import app
+from app.models.plan import PlanResponse
 from app.routes import plan as plan_route
-from app.schemas import PlanResponse
 from planner.pipeline import plan
 from solvers.result import SolveInfo, SolverStatus
 
