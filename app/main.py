@@ -3,7 +3,8 @@
 Routes live in :mod:`app.routes` (one module per resource), error answers in :mod:`app.errors`,
 request and response models in :mod:`app.models` (their limits in :mod:`app.limits`, conversions to
 the planner in :mod:`app.conversions`), settings in :mod:`app.settings`, where plans run in
-:mod:`app.executor`, logs and metrics in :mod:`app.logs` and :mod:`app.metrics`.
+:mod:`app.executor` (both reach the routes through :mod:`app.deps`), logs and metrics in
+:mod:`app.logs` and :mod:`app.metrics`.
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         separate_input_output_schemas=False,
         lifespan=lifespan,
     )
-    app.state.settings = settings
+    app.state.settings = settings  # app.deps hands these two to the routes
     app.state.plan_executor = executor
     # the last added is the outermost: ids, logs and metrics see every answer, 413s included
     app.add_middleware(JSONBodyMiddleware)

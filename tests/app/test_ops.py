@@ -22,6 +22,7 @@ from fastapi.testclient import TestClient
 from prometheus_client.parser import text_string_to_metric_families
 
 from app import settings as settings_module
+from app.deps import get_plan_executor
 from app.executor import Overloaded, PlanExecutor
 from app.logs import REQUEST_ID, JSONFormatter, uvicorn_log_config
 from app.main import create_app
@@ -385,13 +386,14 @@ async def test_the_executor_refuses_more_than_max_pending() -> None:
     assert await first == "done" and executor.pending == 0
 
 
-def test_overload_is_a_503_to_retry(
-    client: TestClient, demo: dict[str, Any], monkeypatch: pytest.MonkeyPatch
-) -> None:
-    async def overloaded(*args: Any) -> Any:
+class _FullExecutor(PlanExecutor):
+    async def run(self, fn: Any, arg: Any) -> Any:
         raise Overloaded("256 plans are queued or running")
 
-    monkeypatch.setattr(client.app.state.plan_executor, "run", overloaded)  # type: ignore[attr-defined]
-    r = client.post("/v1/plan", json=demo, headers={"X-Request-ID": "busy"})
+
+def test_overload_is_a_503_to_retry(demo: dict[str, Any]) -> None:
+    app = create_app(Settings(plan_processes=0))
+    app.dependency_overrides[get_plan_executor] = lambda: _FullExecutor(processes=0, max_pending=1)
+    r = TestClient(app).post("/v1/plan", json=demo, headers={"X-Request-ID": "busy"})
     assert r.status_code == 503 and r.headers["Retry-After"] == "1" and r.headers["X-Request-ID"] == "busy"
     assert r.json()["error"]["code"] == "overloaded" and "256 plans" in r.json()["error"]["message"]
