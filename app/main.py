@@ -13,6 +13,8 @@ from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI
+from fastapi.routing import APIRoute
+from starlette.routing import BaseRoute, Route
 
 from app import __version__
 from app.errors import install_error_handlers
@@ -34,6 +36,16 @@ counter-clockwise from +x. Every request body is read as JSON whatever its Conte
 works as is. Every error answer has the shape
 `{"error": {"code", "message", "details": [{"field", "message"}]}}`.
 """
+
+
+def _every_route(app: FastAPI) -> list[BaseRoute]:
+    """Every route of ``app``, once: FastAPI's own (``/openapi.json``, ``/docs``, …) and the routers'.
+
+    ``app.routes`` alone does not serve: depending on FastAPI's version it lists an included router as
+    one entry without a path, or a copy of each of its routes.
+    """
+    own = [r for r in app.routes if isinstance(r, Route) and not isinstance(r, APIRoute)]
+    return [*own, *(route for router in routers for route in router.routes)]
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -70,9 +82,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_error_handlers(app)
     for router in routers:
         app.include_router(router)
-    routes = [*app.routes, *(route for router in routers for route in router.routes)]
-    paths = {path for route in routes if isinstance(path := getattr(route, "path", None), str)}
-    app.add_middleware(RequestContextMiddleware, paths=paths)
+    app.add_middleware(RequestContextMiddleware, routes=_every_route(app))
     return app
 
 

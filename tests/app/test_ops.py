@@ -114,6 +114,16 @@ def test_one_json_line_per_request(client: TestClient, caplog: pytest.LogCapture
     assert _uuid4(second["request_id"])
 
 
+def test_a_request_refused_before_routing_is_labelled_by_its_route(caplog: pytest.LogCaptureFixture) -> None:
+    small = TestClient(create_app(Settings(max_body_bytes=2048)))
+    with caplog.at_level(logging.INFO, logger="app.access"):
+        assert small.post("/v1/plan", content=b" " * 4096).status_code == 413
+        assert small.post("/v1/nowhere", content=b" " * 4096).status_code == 413
+    first, second = _lines(caplog, "app.access")
+    assert (first["route"], first["status"]) == ("/v1/plan", 413)
+    assert (second["route"], second["status"]) == ("unmatched", 413)
+
+
 def test_a_plan_line_has_its_status_and_stage_timings(
     client: TestClient, demo: dict[str, Any], caplog: pytest.LogCaptureFixture
 ) -> None:
