@@ -29,7 +29,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.models.common import UNION_TAGS
 from app.models.errors import ErrorDetail, ErrorInfo, ErrorResponse
-from planner.errors import InvalidInputError, InvalidReferenceError, PlannerError, PlanningError
+from planner.errors import InvalidInputError, InvalidReferenceError, PlannerError
 
 logger = logging.getLogger(__name__)
 
@@ -37,7 +37,6 @@ logger = logging.getLogger(__name__)
 PLANNER_ERRORS: dict[type[PlannerError], tuple[int, str]] = {
     InvalidReferenceError: (422, "invalid_reference"),
     InvalidInputError: (422, "invalid_input"),
-    PlanningError: (422, "planning_failed"),
     PlannerError: (422, "planner_error"),
 }
 #: codes of HTTP-level refusals; other statuses get ``http_<status>``

@@ -15,7 +15,7 @@ from app.main import create_app
 from app.routes import candidates as candidates_route
 from app.routes import coordinates as coordinates_route
 from app.settings import Settings
-from planner.errors import PlanningError
+from planner.errors import InvalidInputError, PlannerError
 
 
 def error_fields(response: Any) -> list[str]:
@@ -233,14 +233,25 @@ def test_ego_past_the_end(client: TestClient, demo: dict[str, Any]) -> None:
     _expect(_post(client, demo), 422, "invalid_input", "ego")
 
 
-def test_planning_error_is_422(
-    client: TestClient, demo: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+class _NarrowInputError(InvalidInputError):
+    """A planner error class the table does not list."""
+
+
+@pytest.mark.parametrize(
+    ("error", "code"),
+    [
+        (PlannerError("no way through", field="obstacles"), "planner_error"),
+        (_NarrowInputError("no way through", field="obstacles"), "invalid_input"),
+    ],
+)
+def test_a_planner_error_is_422_with_the_code_of_its_nearest_class(
+    client: TestClient, demo: dict[str, Any], monkeypatch: pytest.MonkeyPatch, error: Exception, code: str
 ) -> None:
     def fail(*args: Any, **kwargs: Any) -> Any:
-        raise PlanningError("no way through", field="obstacles")
+        raise error
 
     monkeypatch.setattr(candidates_route, "generate_candidates", fail)
-    _expect(_post(client, demo), 422, "planning_failed", "obstacles")
+    _expect(_post(client, demo), 422, code, "obstacles")
 
 
 def test_bug_is_a_logged_500(
