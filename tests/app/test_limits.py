@@ -1,5 +1,5 @@
-"""Requests .ci/fuzz.sh (schemathesis) and its follow-up found answered 500 or hanging, now refused
-with a 422 naming the field; the smallest accepted values still plan."""
+"""app.limits: the requests .ci/fuzz.sh (schemathesis) and its follow-up found answered 500 or hanging are
+refused with a 422 naming the field; the smallest accepted values still plan."""
 
 from __future__ import annotations
 

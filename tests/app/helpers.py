@@ -1,0 +1,33 @@
+"""Helpers of the HTTP tests: the one error shape, a raw JSON post, an expected error."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from fastapi.testclient import TestClient
+
+
+def error_fields(response: Any) -> list[str]:
+    """The fields named by an error answer, after checking it has the one error shape."""
+    body = response.json()
+    assert set(body) == {"error"}
+    error = body["error"]
+    assert set(error) == {"code", "message", "details"}
+    assert isinstance(error["code"], str) and error["code"]
+    assert isinstance(error["message"], str) and error["message"]
+    for detail in error["details"]:
+        assert set(detail) == {"field", "message"}
+        assert isinstance(detail["field"], str) and detail["message"]
+    return [d["field"] for d in error["details"]]
+
+
+def post(client: TestClient, body: Any, path: str = "/v1/candidates") -> Any:
+    content = body if isinstance(body, str | bytes) else json.dumps(body)
+    return client.post(path, content=content, headers={"content-type": "application/json"})
+
+
+def expect(response: Any, status: int, code: str, field: str) -> None:
+    assert response.status_code == status, response.text
+    assert response.json()["error"]["code"] == code
+    assert field in error_fields(response)
