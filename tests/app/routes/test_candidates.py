@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import math
 from pathlib import Path
 from typing import Any
 
@@ -24,13 +23,12 @@ def test_candidates_transf_kappa(client: TestClient, demo: dict[str, Any]) -> No
         s = [p["s"] for p in candidate["points"]]
         assert len(s) >= 2
         assert all(b > a for a, b in itertools.pairwise(s)), "s must strictly increase"
-        assert all(math.isfinite(p[k]) for p in candidate["points"] for k in "sdxy")
-        assert isinstance(candidate["repaired"], bool)
     diag = out["diagnostics"]
     assert diag["generated"] == 32
     assert diag["generator"] == "transf_kappa"
     assert diag["repaired"] == sum(c["repaired"] for c in out["candidates"])
     assert diag["repaired"] > 0  # the demo's wide inner side folds naive candidates
+    assert {c["repaired"] for c in out["candidates"]} == {True, False}  # not all of them
     assert diag["kept_points"] == sum(len(c["points"]) for c in out["candidates"])
     assert diag["reference_samples"] >= len(demo["reference_line"])
     assert diag["reference_spacing"] > 0

@@ -68,8 +68,8 @@ def test_demo_plans_from_the_ego(client: TestClient, demo: dict[str, Any]) -> No
     diag = out["diagnostics"]
     assert diag["candidates"]["generated"] == options["num_candidates"]
     assert 0 < diag["candidates"]["collision_free"] <= diag["candidates"]["generated"]
-    assert diag["lateral_qp"]["status"] in ("solved", "solved_inaccurate")
-    assert diag["speed"]["status"] in ("solved", "solved_inaccurate")
+    assert diag["lateral_qp"]["status"] == "solved"
+    assert SolverStatus(diag["speed"]["status"]).ok  # an `ok` plan drives a usable speed profile
     assert set(diag["timing_ms"]) == set(STAGES)
     timing = diag["timing_ms"]
     assert timing["total"] >= timing["reference"] + timing["candidates"] + timing["lateral"]
@@ -81,7 +81,6 @@ def test_candidates_only_on_request(client: TestClient, demo: dict[str, Any]) ->
     assert len(out["candidates"]) == 6
     for candidate in out["candidates"]:
         assert set(candidate) == {"points", "repaired"}
-        assert isinstance(candidate["repaired"], bool)
         assert candidate["points"] and all(set(p) == set("sdxy") for p in candidate["points"])
     # the same serialisation as /v1/candidates, the same candidates (they depend on the seed only)
     alone = client.post("/v1/candidates", json=demo).json()
