@@ -64,6 +64,8 @@ Time = Annotated[float, number(ge=-MAX_PREDICTION_TIME, le=MAX_PREDICTION_TIME)]
 Width = Annotated[float, number(ge=0.0, le=MAX_LANE_WIDTH)]
 Size = Annotated[float, number(ge=MIN_OBSTACLE_SIZE, le=MAX_OBSTACLE_SIZE)]
 Speed = Annotated[float, number(ge=0.0, le=MAX_VEHICLE_SPEED)]
+#: a vehicle's acceleration or deceleration limit [m/s²]
+AccelerationLimit = Annotated[float, number(ge=MIN_VEHICLE_ACCELERATION, le=MAX_VEHICLE_ACCELERATION)]
 ObstacleId = Annotated[str, Field(strict=True, min_length=1, max_length=MAX_ID_LENGTH)]
 
 
@@ -253,23 +255,12 @@ class Vehicle(RequestModel):
     max_speed: float = number(
         gt=0.0, le=MAX_VEHICLE_SPEED, default=_VEHICLE.max_speed, description="Speed limit [m/s]."
     )
-    max_acceleration: float = number(
-        ge=MIN_VEHICLE_ACCELERATION,
-        le=MAX_VEHICLE_ACCELERATION,
-        default=_VEHICLE.max_acceleration,
-        description="[m/s²]",
+    max_acceleration: AccelerationLimit = Field(_VEHICLE.max_acceleration, description="[m/s²]")
+    max_deceleration: AccelerationLimit = Field(
+        _VEHICLE.max_deceleration, description="[m/s²], positive."
     )
-    max_deceleration: float = number(
-        ge=MIN_VEHICLE_ACCELERATION,
-        le=MAX_VEHICLE_ACCELERATION,
-        default=_VEHICLE.max_deceleration,
-        description="[m/s²], positive.",
-    )
-    max_lateral_acceleration: float = number(
-        ge=MIN_VEHICLE_ACCELERATION,
-        le=MAX_VEHICLE_ACCELERATION,
-        default=_VEHICLE.max_lateral_acceleration,
-        description="[m/s²]",
+    max_lateral_acceleration: AccelerationLimit = Field(
+        _VEHICLE.max_lateral_acceleration, description="[m/s²]"
     )
     max_curvature: float = number(
         ge=MIN_VEHICLE_CURVATURE,

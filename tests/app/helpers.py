@@ -1,11 +1,14 @@
-"""Helpers of the HTTP tests: the one error shape, a raw JSON post, an expected error."""
+"""Helpers of the HTTP tests: the one error shape, a raw JSON post, an expected error, a failing route."""
 
 from __future__ import annotations
 
 import json
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
+
+from app.routes import candidates as candidates_route
 
 
 def error_fields(response: Any) -> list[str]:
@@ -30,3 +33,12 @@ def expect(response: Any, status: int, code: str, field: str) -> None:
     assert response.status_code == status, response.text
     assert response.json()["error"]["code"] == code
     assert field in error_fields(response)
+
+
+def fail_candidates(monkeypatch: pytest.MonkeyPatch, error: Exception) -> None:
+    """Make ``POST /v1/candidates`` raise ``error`` where it generates the candidates."""
+
+    def fail(*args: Any, **kwargs: Any) -> Any:
+        raise error
+
+    monkeypatch.setattr(candidates_route, "generate_candidates", fail)

@@ -10,9 +10,8 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from app.routes import candidates as candidates_route
 from planner.errors import InvalidInputError, PlannerError
-from tests.app.helpers import error_fields, expect, post
+from tests.app.helpers import error_fields, expect, fail_candidates, post
 
 
 def test_malformed_json(client: TestClient) -> None:
@@ -83,10 +82,7 @@ class _NarrowInputError(InvalidInputError):
 def test_a_planner_error_is_422_with_the_code_of_its_nearest_class(
     client: TestClient, demo: dict[str, Any], monkeypatch: pytest.MonkeyPatch, error: Exception, code: str
 ) -> None:
-    def fail(*args: Any, **kwargs: Any) -> Any:
-        raise error
-
-    monkeypatch.setattr(candidates_route, "generate_candidates", fail)
+    fail_candidates(monkeypatch, error)
     expect(post(client, demo), 422, code, "obstacles")
 
 
@@ -96,10 +92,7 @@ def test_bug_is_a_logged_500(
     monkeypatch: pytest.MonkeyPatch,
     caplog: pytest.LogCaptureFixture,
 ) -> None:
-    def crash(*args: Any, **kwargs: Any) -> Any:
-        raise ZeroDivisionError("secret internals")
-
-    monkeypatch.setattr(candidates_route, "generate_candidates", crash)
+    fail_candidates(monkeypatch, ZeroDivisionError("secret internals"))
     with caplog.at_level(logging.ERROR, logger="app"):
         r = post(client, demo)
     assert r.status_code == 500

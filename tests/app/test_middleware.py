@@ -14,8 +14,8 @@ from fastapi.testclient import TestClient
 from app.logs import JSONFormatter
 from app.main import create_app
 from app.models.plan import STAGES
-from app.routes import candidates as candidates_route
 from app.settings import Settings
+from tests.app.helpers import fail_candidates
 
 
 def _uuid4(value: str) -> bool:
@@ -58,10 +58,7 @@ def test_every_error_answer_has_a_request_id(
     small = TestClient(create_app(Settings(max_body_bytes=2048)))
     answers.append(small.post("/v1/plan", content=b" " * 4096, headers={"X-Request-ID": "r413"}))
 
-    def crash(*args: Any, **kwargs: Any) -> Any:
-        raise ZeroDivisionError("internals")
-
-    monkeypatch.setattr(candidates_route, "generate_candidates", crash)
+    fail_candidates(monkeypatch, ZeroDivisionError("internals"))
     answers.append(client.post("/v1/candidates", json=demo, headers={"X-Request-ID": "r500"}))
     assert [(r.status_code, r.headers.get("X-Request-ID")) for r in answers] == [
         (404, "r404"),
@@ -125,10 +122,7 @@ def test_an_unexpected_error_is_logged_with_its_request_id(
     monkeypatch: pytest.MonkeyPatch,
     caplog: pytest.LogCaptureFixture,
 ) -> None:
-    def crash(*args: Any, **kwargs: Any) -> Any:
-        raise ZeroDivisionError("internals")
-
-    monkeypatch.setattr(candidates_route, "generate_candidates", crash)
+    fail_candidates(monkeypatch, ZeroDivisionError("internals"))
     with caplog.at_level(logging.INFO, logger="app"):
         client.post("/v1/candidates", json=demo, headers={"X-Request-ID": "boom"})
     (error,) = _lines(caplog, "app.errors")
