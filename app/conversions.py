@@ -1,11 +1,11 @@
 """Every conversion between the API's models and the planner's dataclasses, in one place.
 
 :func:`to_problem` turns a validated request into a :class:`planner.problem.PlanningProblem`;
-:func:`from_problem` goes the other way (the demo endpoint); :func:`candidate_data` and
-:func:`plan_data` write the planner's answers as the JSON data of
-:class:`~app.models.candidates.Candidate` lists and :class:`~app.models.plan.PlanResponse`: plain
-lists and dicts built from the arrays (no model per point; finiteness checked on the arrays), ready
-for ``pydantic_core.to_json``.
+:func:`from_problem` goes the other way (the demo endpoint); :func:`candidates_response` is the
+answer of ``/v1/candidates``; :func:`candidate_data` and :func:`plan_data` write the planner's answers
+as the JSON data of :class:`~app.models.candidates.Candidate` lists and
+:class:`~app.models.plan.PlanResponse`: plain lists and dicts built from the arrays (no model per
+point; finiteness checked on the arrays), ready for ``pydantic_core.to_json``.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from typing import Any, get_args
 
 import numpy as np
 
+from app.models.candidates import CandidatesDiagnostics, CandidatesResponse
 from app.models.plan import STAGES, TrajectoryPoint
 from app.models.planning import (
     AnyObstacle,
@@ -30,9 +31,10 @@ from app.models.planning import (
     Vehicle,
 )
 from planner import problem as pp
-from planner.candidates import CandidateSet
+from planner.candidates import CandidateSet, EgoFrenet
 from planner.pipeline import PlanResult
 from planner.pipeline import Status as PlanStatus
+from planner.reference import ReferenceLine
 from planner.roads import demo_problem
 from solvers.result import SolverStatus
 
@@ -138,10 +140,28 @@ def require_finite(what: str, *arrays: Any) -> None:
             raise ValueError(f"{what} holds a non-finite number")
 
 
+def candidates_response(cs: CandidateSet, ref: ReferenceLine, start: EgoFrenet) -> CandidatesResponse:
+    """The answer of ``/v1/candidates``: the candidates ``cs`` generated on ``ref`` from the ego's
+    Frenet state ``start``, and their diagnostics."""
+    diagnostics = CandidatesDiagnostics(
+        generated=cs.count,
+        repaired=int(np.count_nonzero(cs.repaired)),
+        generator=cs.generator,
+        reference_samples=ref.size,
+        reference_spacing=ref.spacing,
+        reference_length=ref.length,
+        reference_max_curvature=float(np.max(np.abs(ref.kappa))),
+        ego_s=start.s,
+        ego_d=start.d,
+        kept_points=int(np.count_nonzero(cs.valid)),
+    )
+    return CandidatesResponse(candidates=candidate_data(cs), diagnostics=diagnostics)
+
+
 def candidate_data(cs: CandidateSet) -> list[dict[str, Any]]:
-    """The kept points of every candidate of ``cs`` in driving order, as the JSON data of
-    ``list[Candidate]`` (plain lists and dicts: no model per point; finiteness checked on the arrays).
-    """
+    """The kept points of every candidate of ``cs`` in driving order, as the JSON data of a list of
+    :class:`~app.models.candidates.Candidate` (plain lists and dicts: no model per point; finiteness
+    checked on the arrays)."""
     keep = cs.valid
     require_finite("a candidate", cs.s[keep], cs.d[keep], cs.xy[keep])
     out: list[dict[str, Any]] = []
@@ -160,8 +180,9 @@ _TRAJECTORY_FIELDS = tuple(TrajectoryPoint.model_fields)
 
 def plan_data(result: PlanResult) -> dict[str, Any]:
     """The answer to :func:`planner.pipeline.plan`'s ``result`` as the JSON data of
-    :class:`PlanResponse` (plain lists and dicts built from the arrays, ready for
-    ``pydantic_core.to_json``; ``candidates`` only when the planner returned them).
+    :class:`~app.models.plan.PlanResponse` (plain lists and dicts built from the arrays, ready for
+    ``pydantic_core.to_json``; ``candidates`` only when the planner returned them; every stage of
+    :data:`~app.models.plan.STAGES`, 0 for one that did not run).
 
     A non-finite number or an unknown solver status is a bug and raises ``ValueError``.
     """

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated
 
-import numpy as np
 from fastapi import APIRouter, Body
 
-from app.conversions import candidate_data, demo_request, to_problem
+from app.conversions import candidates_response, demo_request, to_problem
 from app.errors import ERROR_RESPONSES
-from app.models.candidates import CandidatesDiagnostics, CandidatesResponse
+from app.models.candidates import CandidatesResponse
 from app.models.planning import PlanningRequest
 from planner.candidates import ego_frenet, generate_candidates
 from planner.reference import build_reference
@@ -42,16 +41,4 @@ def candidates(
     cs = generate_candidates(
         ref, problem.lane, problem.ego, problem.vehicle, problem.options, start=start
     )
-    diagnostics = CandidatesDiagnostics(
-        generated=cs.count,
-        repaired=int(np.count_nonzero(cs.repaired)),
-        generator=cs.generator,
-        reference_samples=ref.size,
-        reference_spacing=ref.spacing,
-        reference_length=ref.length,
-        reference_max_curvature=float(np.max(np.abs(ref.kappa))),
-        ego_s=start.s,
-        ego_d=start.d,
-        kept_points=int(np.count_nonzero(cs.valid)),
-    )
-    return CandidatesResponse(candidates=candidate_data(cs), diagnostics=diagnostics)
+    return candidates_response(cs, ref, start)
