@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from fastapi import APIRouter
 
-from fastapi import APIRouter, Body
-
-from app.conversions import candidates_response, demo_request, to_problem
+from app.conversions import candidates_response, to_problem
 from app.errors import ERROR_RESPONSES
 from app.models.candidates import CandidatesResponse
-from app.models.planning import PlanningRequest
+from app.routes.examples import PlanningBody
 from planner.candidates import ego_frenet, generate_candidates
 from planner.reference import build_reference
 
@@ -22,17 +20,7 @@ router = APIRouter(prefix="/v1", tags=["candidates"], responses=ERROR_RESPONSES)
     summary="Candidate paths of a planning request",
 )
 def candidates(
-    body: Annotated[
-        PlanningRequest,
-        Body(
-            openapi_examples={
-                "demo": {
-                    "summary": "The demo U-turn (GET /v1/demo)",
-                    "value": demo_request().model_dump(mode="json"),
-                }
-            }
-        ),
-    ],
+    body: PlanningBody,
 ) -> CandidatesResponse:
     """`options.num_candidates` lateral paths from the ego (the points each keeps) + diagnostics."""
     problem = to_problem(body)

@@ -14,10 +14,9 @@ answer is exactly its JSON.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated
 
 import pydantic_core
-from fastapi import APIRouter, Body, Request, Response
+from fastapi import APIRouter, Request, Response
 
 from app import metrics
 from app.conversions import demo_request, plan_data, to_problem
@@ -27,6 +26,7 @@ from app.executor import Overloaded
 from app.models.errors import ErrorResponse
 from app.models.plan import PlanResponse
 from app.models.planning import PlanningRequest
+from app.routes.examples import PlanningBody
 from planner.pipeline import plan
 
 router = APIRouter(prefix="/v1", tags=["planning"], responses=ERROR_RESPONSES)
@@ -73,17 +73,7 @@ def warm_up() -> None:
 )
 async def plan_trajectory(
     request: Request,
-    body: Annotated[
-        PlanningRequest,
-        Body(
-            openapi_examples={
-                "demo": {
-                    "summary": "The demo U-turn (GET /v1/demo)",
-                    "value": demo_request().model_dump(mode="json"),
-                }
-            }
-        ),
-    ],
+    body: PlanningBody,
     settings: SettingsDep,
     executor: PlanExecutorDep,
 ) -> Response:
