@@ -133,7 +133,7 @@ def demo_request() -> PlanningRequest:
 # -- answers -----------------------------------------------------------------------------------
 
 
-def require_finite(what: str, *arrays: Any) -> None:
+def _require_finite(what: str, *arrays: Any) -> None:
     """Raise ``ValueError`` (a bug of the server: answered 500) if any of ``arrays`` is not finite."""
     for array in arrays:
         if not np.isfinite(np.asarray(array, dtype=float)).all():
@@ -163,7 +163,7 @@ def candidate_data(cs: CandidateSet) -> list[dict[str, Any]]:
     :class:`~app.models.candidates.Candidate` (plain lists and dicts: no model per point; finiteness
     checked on the arrays)."""
     keep = cs.valid
-    require_finite("a candidate", cs.s[keep], cs.d[keep], cs.xy[keep])
+    _require_finite("a candidate", cs.s[keep], cs.d[keep], cs.xy[keep])
     out: list[dict[str, Any]] = []
     for i in range(cs.count):
         s, d, xy = cs.points(i)
@@ -190,11 +190,11 @@ def plan_data(result: PlanResult) -> dict[str, Any]:
         raise ValueError(f"unknown plan status {result.status!r}")
     traj = result.trajectory
     columns = [np.asarray(getattr(traj, name), dtype=float) for name in _TRAJECTORY_FIELDS]
-    require_finite("the trajectory", *columns)
+    _require_finite("the trajectory", *columns)
     rows = zip(*(c.tolist() for c in columns), strict=True)
     diag = result.diagnostics
     timing = [float(diag.timing_ms.get(name, 0.0)) for name in STAGES]
-    require_finite("the diagnostics", diag.lateral_qp.solve_time_ms, diag.speed.solve_time_ms, timing)
+    _require_finite("the diagnostics", diag.lateral_qp.solve_time_ms, diag.speed.solve_time_ms, timing)
     data: dict[str, Any] = {
         "status": result.status,
         "message": str(result.message),
