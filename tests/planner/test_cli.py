@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from app.schemas import PlanningRequest, demo_request, to_problem
+from app.conversions import demo_request, to_problem
+from app.models.planning import PlanningRequest
 from planner.cli import main
 from planner.errors import InvalidInputError
 from planner.io import problem_from_json, problem_to_json

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.schemas import PlanningRequest
+from app.models.planning import PlanningRequest
 from planner import commonroad as cr
 from planner.cli import main as cli_main
 from planner.io import problem_from_json
