@@ -1,4 +1,4 @@
-"""Figures: ``python -m planner.figures candidates --out candidates.png``.
+"""Figures: ``python -m planner_tools.figures candidates --out candidates.png``.
 
 ``candidates`` draws the candidates of Algorithm 4 (``naive``) and Algorithm 5 (``transf_kappa``)
 side by side on the demo U-turn, whose inner side is wider than its radius: naive candidates that run
@@ -78,7 +78,7 @@ def candidates_figure(out: Path, *, num_candidates: int = 40, seed: int = 0) -> 
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(prog="python -m planner.figures", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m planner_tools.figures", description=__doc__)
     sub = parser.add_subparsers(dest="figure", required=True)
     cand = sub.add_parser("candidates", help="Algorithm 4 vs 5 candidates on the demo U-turn")
     cand.add_argument("--out", type=Path, default=Path("candidates.png"))

@@ -13,11 +13,11 @@ import pytest
 from PIL import Image
 
 from app.schemas import PlanningRequest, demo_request, to_problem
-from planner.cli import main
 from planner.errors import InvalidInputError
-from planner.io import problem_from_json, problem_to_json
 from planner.problem import PlanningProblem
 from planner.roads import straight
+from planner_tools.cli import main
+from planner_tools.io import problem_from_json, problem_to_json
 
 ROOT = Path(__file__).resolve().parents[2]
 COMMONROAD = sorted(p for p in (ROOT / "tests/data/commonroad").glob("*.json") if p.name != "index.json")
@@ -106,7 +106,7 @@ def test_reader_checks_predictions() -> None:
 
 def test_entry_point_is_declared() -> None:
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
-    assert project["scripts"]["kappa-planner"] == "planner.cli:main"
+    assert project["scripts"]["kappa-planner"] == "planner_tools.cli:main"
     assert any(dep.startswith("tqdm") for dep in project["dependencies"])
 
 

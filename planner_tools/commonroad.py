@@ -23,7 +23,7 @@ written in the service's request contract (:class:`app.schemas.PlanningRequest`)
   shared requests (``target_speed``: the larger of the ego's speed, the middle of the goal's speed
   interval and :data:`MIN_TARGET_SPEED`).
 * **goal** (not part of the request) — ``s_min``, the arc length of the goal region's centroid on the
-  reference (at most the reference's length less a vehicle length), for :class:`planner.sim.Goal`;
+  reference (at most the reference's length less a vehicle length), for :class:`planner_tools.sim.Goal`;
   ``None`` for a goal given by time only (the simulator then drives to the reference's end). The
   goal's time window is recorded but not enforced.
 
@@ -303,8 +303,8 @@ class Conversion:
     info: dict[str, Any] = field(default_factory=dict)
 
     def sim_goal(self) -> Any:
-        """The :class:`planner.sim.Goal` of ``goal`` (``None``: the simulator's default)."""
-        from planner.sim import Goal
+        """The :class:`planner_tools.sim.Goal` of ``goal`` (``None``: the simulator's default)."""
+        from planner_tools.sim import Goal
 
         s_min = self.goal.get("s_min")
         return None if s_min is None else Goal(s_min=float(s_min))
@@ -894,7 +894,7 @@ def load(path: str | Path, *, planning_problem_id: int | None = None) -> Convers
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     """Register the ``commonroad`` subcommand on ``kappa-planner``'s subparsers."""
-    from planner.cli import GENERATORS, _positive
+    from planner_tools.cli import GENERATORS, _positive
 
     p: argparse.ArgumentParser = sub.add_parser(
         "commonroad",
@@ -930,9 +930,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 def run_command(args: argparse.Namespace) -> int:
     """``kappa-planner commonroad``: convert, simulate, print the metrics, write files to ``--out``."""
-    from planner import cli
     from planner.errors import PlannerError
-    from planner.io import problem_from_json
+    from planner_tools import cli
+    from planner_tools.io import problem_from_json
 
     try:
         conv = load(args.scenario, planning_problem_id=args.planning_problem)

@@ -2,14 +2,14 @@
 
 * ``kappa-planner simulate ROAD.json --out DIR [--generator naive|transf_kappa]`` drives the planning
   request in ``ROAD.json`` (the body of ``POST /v1/plan``, e.g. from ``GET /v1/demo`` or
-  ``tests/data/commonroad/*.json``) in closed loop (:func:`planner.sim.simulate`) and writes a PNG per
+  ``tests/data/commonroad/*.json``) in closed loop (:func:`planner_tools.sim.simulate`) and writes a PNG per
   key frame (every ``--frame-every`` seconds and the last), ``sim.gif`` and ``metrics.json``.
 * ``kappa-planner compare ROAD.json --out DIR`` runs both generators and draws them side by side like
   Fig. 4 of the paper (``compare.png``: road, obstacles, driven paths, candidate fans at four points
   along the road, a metrics table; ``compare.gif``), with ``metrics.json`` for both.
 * ``kappa-planner demo --out DIR`` is ``compare`` on the built-in demo U-turn.
 
-The request is read by :func:`planner.io.problem_from_json` (no pydantic, no ``app`` import: the
+The request is read by :func:`planner_tools.io.problem_from_json` (no pydantic, no ``app`` import: the
 command line is a client of the planner like the HTTP layer). Exit status: 0 on success (whatever the
 run's outcome), 2 for an unreadable or invalid request.
 """
@@ -40,15 +40,15 @@ from matplotlib.text import Text
 from PIL import Image
 from tqdm import tqdm
 
-from planner import commonroad
 from planner.candidates import lane_bounds
 from planner.collision import box_corners
 from planner.errors import PlannerError
 from planner.frenet import to_cartesian
-from planner.io import problem_from_json
 from planner.problem import DynamicObstacle, Generator, PlanningProblem
 from planner.roads import demo_problem
-from planner.sim import BicycleModel, Goal, SimResult, obstacle_outlines, simulate
+from planner_tools import commonroad
+from planner_tools.io import problem_from_json
+from planner_tools.sim import BicycleModel, Goal, SimResult, obstacle_outlines, simulate
 
 GENERATORS: tuple[Generator, ...] = ("naive", "transf_kappa")
 TITLES = {"naive": "Algorithm 4 (naive offsets)", "transf_kappa": "Algorithm 5 (TransF-κ)"}
