@@ -260,7 +260,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of ``kappa-planner``; returns the exit status."""
     args = _parser().parse_args(argv)
     try:
-        TOOLS.require("kappa-planner")
+        TOOLS.require("the command line")
         code: int = args.func(args)
     except (PlannerError, MissingExtraError) as exc:
         print(f"kappa-planner: error: {exc}", file=sys.stderr)

@@ -26,7 +26,7 @@ def main(argv: list[str] | None = None) -> int:
     cand.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     try:
-        TOOLS.require("python -m planner_tools.figures")
+        TOOLS.require("drawing")
     except MissingExtraError as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)
         return 2

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import csv
 import json
+import re
+import sys
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -16,7 +18,10 @@ from app.schemas import PlanningRequest, demo_request, to_problem
 from planner.errors import InvalidInputError
 from planner.problem import PlanningProblem
 from planner.roads import straight
+from planner_tools import extras, render  # noqa: F401 (render imports the extra's modules once)
 from planner_tools.cli import main
+from planner_tools.extras import TOOLS
+from planner_tools.figures import main as figures_main
 from planner_tools.io import problem_from_json, problem_to_json
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -104,10 +109,43 @@ def test_reader_checks_predictions() -> None:
     assert err.value.field == "obstacles[1].id"
 
 
-def test_entry_point_is_declared() -> None:
+def _names(requirements: list[str]) -> set[str]:
+    """Distribution names of requirement strings, normalised (``Pillow>=10`` → ``pillow``)."""
+    return {re.split(r"[\[<>=~!; ]", r, maxsplit=1)[0].lower().replace("_", "-") for r in requirements}
+
+
+def test_entry_point_and_extras_are_declared() -> None:
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     assert project["scripts"]["kappa-planner"] == "planner_tools.cli:main"
-    assert any(dep.startswith("tqdm") for dep in project["dependencies"])
+    optional = project["optional-dependencies"]
+    for extra in (TOOLS, extras.COMMONROAD):
+        assert _names(optional[extra.name]) == {d.lower() for d in extra.modules.values()}
+        assert not _names(project["dependencies"]) & _names(optional[extra.name])
+
+
+@pytest.mark.parametrize("module", sorted(TOOLS.modules))
+def test_without_the_tools_extra_the_cli_says_what_to_install(
+    module: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # the extra's modules are imported (by render): blocking one leaves the others whole
+    monkeypatch.setitem(sys.modules, module, None)  # as if it were not installed
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"kappa-planner: error: the command line needs {TOOLS.modules[module]}: install ")
+    assert "pip install 'kappa-planner[tools]'" in err
+    assert "Traceback" not in err and not out.exists()
+    assert figures_main(["candidates", "--out", str(tmp_path / "c.png")]) == 2
+    assert "pip install 'kappa-planner[tools]'" in capsys.readouterr().err
+    assert not (tmp_path / "c.png").exists()
+
+
+def test_the_candidates_figure_is_drawn(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "fig" / "candidates.png"
+    assert figures_main(["candidates", "--out", str(out), "--num-candidates", "6"]) == 0
+    with Image.open(out) as png:
+        assert png.size == (1430, 715)  # 13 × 6.5 in at 110 dpi
+    assert f"wrote {out}" in capsys.readouterr().out
 
 
 @pytest.fixture
