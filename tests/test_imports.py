@@ -11,6 +11,7 @@ project, else to ``pkg``.
 from __future__ import annotations
 
 import ast
+import functools
 import graphlib
 import sys
 import tomllib
@@ -133,14 +134,20 @@ def _third_party(names: Iterable[str], project: Iterable[str] = PACKAGES) -> set
     return {t for t in tops if t and t not in sys.stdlib_module_names and t not in set(project)}
 
 
+@functools.cache
+def _top_level_modules() -> dict[str, set[str]]:
+    """Installed distribution (canonical name) → the top-level modules it provides."""
+    out: dict[str, set[str]] = {}
+    for module, dists in metadata.packages_distributions().items():
+        for d in dists:
+            out.setdefault(canonicalize_name(d), set()).add(module)
+    return out
+
+
 def _provided(distributions: Iterable[str]) -> set[str]:
     """Top-level modules the installed ``distributions`` provide."""
-    wanted = {canonicalize_name(d) for d in distributions}
-    return {
-        module
-        for module, dists in metadata.packages_distributions().items()
-        if wanted & {canonicalize_name(d) for d in dists}
-    }
+    table = _top_level_modules()
+    return {m for d in distributions for m in table.get(canonicalize_name(d), set())}
 
 
 def _closure(requirements: Iterable[str]) -> set[str]:
