@@ -25,10 +25,10 @@ import numpy as np
 import pytest
 from scenario_roads import Road, arc_piece, straight_piece
 
-from planner.io import problem_from_json
 from planner.pipeline import plan
 from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
-from planner.sim import shift_obstacle
+from planner_tools.io import problem_from_json
+from planner_tools.sim import shift_obstacle
 from solvers.result import SolverStatus
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "commonroad"

@@ -1,29 +1,23 @@
-"""Command line: ``kappa-planner simulate | compare | demo`` — closed-loop runs, figures, animations.
+"""Drawings of the planner at work (matplotlib): closed-loop runs and candidate fans.
 
-* ``kappa-planner simulate ROAD.json --out DIR [--generator naive|transf_kappa]`` drives the planning
-  request in ``ROAD.json`` (the body of ``POST /v1/plan``, e.g. from ``GET /v1/demo`` or
-  ``tests/data/commonroad/*.json``) in closed loop (:func:`planner.sim.simulate`) and writes a PNG per
-  key frame (every ``--frame-every`` seconds and the last), ``sim.gif`` and ``metrics.json``.
-* ``kappa-planner compare ROAD.json --out DIR`` runs both generators and draws them side by side like
-  Fig. 4 of the paper (``compare.png``: road, obstacles, driven paths, candidate fans at four points
-  along the road, a metrics table; ``compare.gif``), with ``metrics.json`` for both.
-* ``kappa-planner demo --out DIR`` is ``compare`` on the built-in demo U-turn.
+* :func:`write_key_frames` — a PNG of a run every few seconds and of its final state;
+* :func:`write_gif` — an animation of runs side by side, in real time;
+* :func:`write_compare` — Fig. 4 of the paper: a row per run, a column per point of progress along the
+  reference, and the metrics table (:data:`planner_tools.records.METRIC_ROWS`);
+* :func:`candidates_figure` — the candidates of Algorithm 4 (``naive``) and Algorithm 5
+  (``transf_kappa``) side by side on the demo U-turn, whose inner side is wider than its radius: naive
+  candidates that run backwards or cross themselves in red, the rest in blue.
 
-The request is read by :func:`planner.io.problem_from_json` (no pydantic, no ``app`` import: the
-command line is a client of the planner like the HTTP layer). Exit status: 0 on success (whatever the
-run's outcome), 2 for an unreadable or invalid request.
+A panel shows the road (lane edges where ``κ·d < 1``, the reference), static obstacles, and per cycle
+the candidates (orange: those that fold back), the plan, the driven path, the vehicle's footprint and
+the moving obstacles. Needs the optional extra ``tools`` (matplotlib, Pillow, tqdm).
 """
 
 from __future__ import annotations
 
-import argparse
-import csv
-import json
-import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import matplotlib
 
@@ -35,22 +29,22 @@ from matplotlib.collections import LineCollection
 from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import Polygon
+from matplotlib.patches import Circle, Polygon
 from matplotlib.text import Text
 from PIL import Image
 from tqdm import tqdm
 
-from planner import commonroad
-from planner.candidates import lane_bounds
+from planner.candidates import CandidateSet, generate_candidates, lane_bounds
 from planner.collision import box_corners
-from planner.errors import PlannerError
 from planner.frenet import to_cartesian
-from planner.io import problem_from_json
-from planner.problem import DynamicObstacle, Generator, PlanningProblem
+from planner.problem import CircleObstacle, DynamicObstacle, Generator, PlanningProblem, PolygonObstacle
+from planner.reference import ReferenceLine, build_reference
 from planner.roads import demo_problem
-from planner.sim import BicycleModel, Goal, SimResult, obstacle_outlines, simulate
+from planner.validation import folds_back
+from planner_tools.records import METRIC_ROWS
+from planner_tools.sim import SimResult, obstacle_outlines
 
-GENERATORS: tuple[Generator, ...] = ("naive", "transf_kappa")
+#: panel title of each generator
 TITLES = {"naive": "Algorithm 4 (naive offsets)", "transf_kappa": "Algorithm 5 (TransF-κ)"}
 #: colours: candidates that are fine / fold back, the plan, the driven path, the vehicle
 C_CAND, C_FOLD, C_PLAN, C_DRIVEN, C_EGO = "tab:blue", "tab:orange", "crimson", "black", "tab:green"
@@ -59,7 +53,7 @@ C_HIT = "tab:red"
 
 
 # --------------------------------------------------------------------------------------------------
-# Drawing
+# Closed-loop runs
 # --------------------------------------------------------------------------------------------------
 
 
@@ -249,29 +243,6 @@ def _progress_frames(results: Sequence[SimResult], count: int) -> list[list[int]
     return out
 
 
-_TABLE_ROWS: tuple[tuple[str, Callable[[dict[str, Any]], str]], ...] = (
-    ("outcome", lambda m: m["termination"]),
-    ("time to goal [s]", lambda m: "—" if m["time_to_goal"] is None else f"{m['time_to_goal']:.1f}"),
-    ("collisions (sub-steps)", lambda m: str(m["collisions"])),
-    ("min clearance [m]", lambda m: "—" if m["min_clearance"] is None else f"{m['min_clearance']:.2f}"),
-    ("backward steps / κ·d ≥ 1 steps", lambda m: f"{m['backward_steps']} / {m['fold_steps']}"),
-    (
-        "folded candidates: mean / cycles / chosen",
-        lambda m: "{mean:.1f} / {cycles:.0f} / {chosen:.0f}".format(**m["folded_candidates"]),
-    ),
-    (
-        "plans ok / stopped / fallback / error",
-        lambda m: "{ok} / {stopped} / {fallback} / {error}".format(**m["status_counts"]),
-    ),
-    ("max |a_lat| [m/s²]", lambda m: f"{m['max_lateral_acceleration']:.2f}"),
-    (
-        "max |jerk| long. / lat. [m/s³]",
-        lambda m: f"{m['max_longitudinal_jerk']:.1f} / {m['max_lateral_jerk']:.1f}",
-    ),
-    ("planning median / p95 [ms]", lambda m: "{median:.0f} / {p95:.0f}".format(**m["planning_ms"])),
-)
-
-
 def write_compare(results: Sequence[SimResult], out: Path, *, columns: int = 4, dpi: int = 110) -> Path:
     """Fig. 4 of the paper: a row per run, a column per point of progress, and a metrics table."""
     rows = len(results)
@@ -290,10 +261,10 @@ def write_compare(results: Sequence[SimResult], out: Path, *, columns: int = 4, 
     table_ax = fig.add_subplot(grid[rows, :])
     table_ax.axis("off")
     metrics = [r.metrics.to_dict() for r in results]
-    cells = [[fmt(m) for m in metrics] for _, fmt in _TABLE_ROWS]
+    cells = [[fmt(m) for m in metrics] for _, fmt in METRIC_ROWS]
     table = table_ax.table(
         cellText=cells,
-        rowLabels=[name for name, _ in _TABLE_ROWS],
+        rowLabels=[name for name, _ in METRIC_ROWS],
         colLabels=[TITLES.get(m["generator"], m["generator"]) for m in metrics],
         loc="center",
         cellLoc="center",
@@ -313,207 +284,56 @@ def write_compare(results: Sequence[SimResult], out: Path, *, columns: int = 4, 
 
 
 # --------------------------------------------------------------------------------------------------
-# Files
+# Candidates of Algorithm 4 and 5
 # --------------------------------------------------------------------------------------------------
 
 
-def run_record(result: SimResult) -> dict[str, Any]:
-    """metrics.json data of one run: settings and metrics."""
-    model = result.model
-    goal = result.goal
-    return {
-        "generator": result.problem.options.generator,
-        "replan_period_s": result.replan_period,
-        "duration_s": round(result.duration, 3),
-        "model": {
-            "wheelbase_m": model.wheelbase,
-            "rear_to_centre_m": model.rear_to_centre,
-            "max_steering_rad": round(model.max_steering, 4),
-            "max_steering_rate_rad_s": model.max_steering_rate,
-            "substeps": model.substeps,
-        },
-        "goal": {
-            "s_min": goal.s_min,
-            "polygon": None if goal.polygon is None else np.asarray(goal.polygon).tolist(),
-            "position": None if goal.position is None else np.asarray(goal.position).tolist(),
-            "radius": goal.radius,
-        },
-        "metrics": result.metrics.to_dict(),
-    }
+def _draw_road(ax: Axes, ref: ReferenceLine, problem: PlanningProblem) -> None:
+    bounds = lane_bounds(ref, problem.lane, ref.s, half_width=0.0, margin=0.0)
+    for offset, style in ((bounds.upper, "-"), (bounds.lower, "-")):
+        edge = to_cartesian(ref, ref.s, offset)
+        ax.plot(edge[:, 0], edge[:, 1], style, color="0.35", lw=1.2)
+    ax.plot(ref.points[:, 0], ref.points[:, 1], "--", color="0.55", lw=1.0, label="reference")
+    for ob in problem.obstacles:
+        if isinstance(ob, CircleObstacle):
+            ax.add_patch(Circle(tuple(ob.center), ob.radius, color="k", alpha=0.7))
+        elif isinstance(ob, PolygonObstacle):
+            ax.add_patch(Polygon(ob.polygon, closed=True, color="k", alpha=0.7))
+    ax.plot([problem.ego.x], [problem.ego.y], "k^", ms=9, label="ego")
 
 
-def write_steps_csv(result: SimResult, out: Path) -> Path:
-    """One row per replan cycle: the vehicle's state, the plan's status and planning time."""
-    header = [
-        "t", "x", "y", "yaw", "course", "speed", "acceleration", "curvature", "s", "d",
-        "status", "planning_ms", "folded_candidates", "message",
-    ]  # fmt: skip
-    with out.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(header)
-        for st in result.steps:
-            x = st.state
-            folded = "" if st.candidates_folded is None else int(st.candidates_folded.sum())
-            w.writerow(
-                [
-                    *(f"{v:.4f}" for v in (x.t, x.x, x.y, x.yaw, x.course, x.speed, x.acceleration)),
-                    f"{x.curvature:.5f}",
-                    f"{st.s:.4f}",
-                    f"{st.d:.4f}",
-                    st.status,
-                    f"{st.planning_ms:.2f}",
-                    folded,
-                    st.message,
-                ]
-            )
+def _draw_candidates(ax: Axes, ref: ReferenceLine, cands: CandidateSet) -> int:
+    broken = 0
+    for i in range(cands.count):
+        _, _, xy = cands.points(i)
+        bad = folds_back(ref, xy)
+        broken += int(bad)
+        ax.plot(xy[:, 0], xy[:, 1], color="tab:red" if bad else "tab:blue", lw=0.8, alpha=0.8)
+    return broken
+
+
+def candidates_figure(out: Path, *, num_candidates: int = 40, seed: int = 0) -> Path:
+    """Draw Algorithm 4 vs Algorithm 5 candidates on the demo U-turn into ``out`` (PNG)."""
+    problem = demo_problem()
+    ref = build_reference(problem.reference_line)
+    fig, axes = plt.subplots(1, 2, figsize=(13, 6.5), sharex=True, sharey=True)
+    panels: tuple[tuple[Axes, Generator, str], ...] = (
+        (axes[0], "naive", "Algorithm 4 (naive offsets)"),
+        (axes[1], "transf_kappa", "Algorithm 5 (TransF-κ repair)"),
+    )
+    for ax, generator, title in panels:
+        options = replace(problem.options, num_candidates=num_candidates, seed=seed, generator=generator)
+        cands = generate_candidates(ref, problem.lane, problem.ego, problem.vehicle, options)
+        _draw_road(ax, ref, problem)
+        broken = _draw_candidates(ax, ref, cands)
+        ax.set_title(f"{title}\n{broken} of {cands.count} run backwards or self-intersect")
+        ax.set_aspect("equal")
+        ax.grid(alpha=0.3)
+        ax.set_xlabel("x [m]")
+    axes[0].set_ylabel("y [m]")
+    axes[0].legend(loc="lower left")
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
     return out
-
-
-def _summary(results: Sequence[SimResult]) -> str:
-    names = [r.problem.options.generator for r in results]
-    width = max(len(n) for n, _ in _TABLE_ROWS) + 2
-    lines = ["".ljust(width) + "".join(n.ljust(22) for n in names)]
-    for name, fmt in _TABLE_ROWS:
-        lines.append(name.ljust(width) + "".join(fmt(r.metrics.to_dict()).ljust(22) for r in results))
-    return "\n".join(lines)
-
-
-# --------------------------------------------------------------------------------------------------
-# Commands
-# --------------------------------------------------------------------------------------------------
-
-
-def _load(path: Path) -> PlanningProblem:
-    try:
-        data = json.loads(path.read_text())
-    except OSError as exc:
-        raise PlannerError(f"cannot read {path}: {exc.strerror or exc}") from exc
-    except json.JSONDecodeError as exc:
-        raise PlannerError(f"{path} is not JSON: {exc}") from exc
-    return problem_from_json(data)
-
-
-def _run(problem: PlanningProblem, generator: Generator, args: argparse.Namespace) -> SimResult:
-    problem = replace(problem, options=replace(problem.options, generator=generator))
-    model = BicycleModel.for_vehicle(problem.vehicle, centre_midway=args.centre_midway)
-    goal = None if args.goal_s is None else Goal(s_min=args.goal_s)
-    disable = args.quiet or not sys.stderr.isatty()
-    with tqdm(total=1, desc=generator, unit="cycle", disable=disable) as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
-
-        return simulate(
-            problem,
-            duration=args.duration,
-            replan_period=args.replan_period,
-            goal=goal,
-            progress=progress,
-            model=model,
-        )
-
-
-def _cmd_simulate(args: argparse.Namespace) -> int:
-    problem = _load(args.road)
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
-    result = _run(problem, args.generator or problem.options.generator, args)
-    quiet = args.quiet or not sys.stderr.isatty()
-    frames = write_key_frames(result, out, every=args.frame_every)
-    if not args.no_gif:
-        write_gif([result], out / "sim.gif", stride=args.gif_stride, dpi=args.gif_dpi, quiet=quiet)
-    write_steps_csv(result, out / "steps.csv")
-    record = {"road": str(args.road), **run_record(result)}
-    (out / "metrics.json").write_text(json.dumps(record, indent=1, ensure_ascii=False) + "\n")
-    print(_summary([result]))
-    print(f"wrote {len(frames)} frames, {'' if args.no_gif else 'sim.gif, '}steps.csv, metrics.json to {out}")
-    return 0
-
-
-def _compare(problem: PlanningProblem, road: str, args: argparse.Namespace) -> int:
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
-    results = [_run(problem, g, args) for g in GENERATORS]
-    quiet = args.quiet or not sys.stderr.isatty()
-    write_compare(results, out / "compare.png")
-    if not args.no_gif:
-        write_gif(results, out / "compare.gif", stride=args.gif_stride, dpi=args.gif_dpi, quiet=quiet)
-    for r in results:
-        write_steps_csv(r, out / f"steps_{r.problem.options.generator}.csv")
-    record = {"road": road, "runs": {r.problem.options.generator: run_record(r) for r in results}}
-    (out / "metrics.json").write_text(json.dumps(record, indent=1, ensure_ascii=False) + "\n")
-    print(_summary(results))
-    print(f"wrote compare.png, {'' if args.no_gif else 'compare.gif, '}steps_*.csv, metrics.json to {out}")
-    return 0
-
-
-def _cmd_compare(args: argparse.Namespace) -> int:
-    return _compare(_load(args.road), str(args.road), args)
-
-
-def _cmd_demo(args: argparse.Namespace) -> int:
-    return _compare(demo_problem(), "built-in demo U-turn (planner.roads.demo_problem)", args)
-
-
-def _positive(text: str) -> float:
-    value = float(text)
-    if not value > 0.0:
-        raise argparse.ArgumentTypeError(f"must be positive: {text}")
-    return value
-
-
-def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="kappa-planner",
-        description="Closed-loop simulation of the TransF-κ planner: key frames, animation and metrics.",
-    )
-    sub = parser.add_subparsers(dest="command", required=True)
-    common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--out", type=Path, required=True, help="output directory (created)")
-    common.add_argument("--duration", type=_positive, default=None, help="longest simulated time [s]")
-    common.add_argument("--replan-period", type=_positive, default=0.1, help="time between plans [s]")
-    common.add_argument("--goal-s", type=float, default=None, help="goal: arc length reached [m]")
-    common.add_argument("--no-gif", action="store_true", help="skip the animation")
-    common.add_argument("--gif-stride", type=int, default=2, help="a GIF frame every N cycles")
-    common.add_argument("--gif-dpi", type=int, default=100, help="GIF resolution [px/inch]")
-    common.add_argument(
-        "--centre-midway",
-        action="store_true",
-        help="a car referenced midway between its axles: its body yaws against the path by the slip "
-        "angle, which the planner's footprint does not model (default: no slip at the centre, the "
-        "vehicle the planner's contract describes)",
-    )
-    common.add_argument("--quiet", action="store_true", help="no progress bar")
-
-    sim = sub.add_parser("simulate", parents=[common], help="simulate one run of a planning request")
-    sim.add_argument("road", type=Path, help="planning request JSON (the body of POST /v1/plan)")
-    sim.add_argument("--generator", choices=GENERATORS, default=None, help="default: the request's")
-    sim.add_argument("--frame-every", type=_positive, default=2.0, help="key frame period [s]")
-    sim.set_defaults(func=_cmd_simulate)
-
-    cmp_ = sub.add_parser("compare", parents=[common], help="naive vs transf_kappa side by side")
-    cmp_.add_argument("road", type=Path, help="planning request JSON (the body of POST /v1/plan)")
-    cmp_.set_defaults(func=_cmd_compare)
-
-    demo = sub.add_parser("demo", parents=[common], help="compare on the built-in demo U-turn")
-    demo.set_defaults(func=_cmd_demo)
-
-    commonroad.add_parser(sub)
-    return parser
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``kappa-planner``; returns the exit status."""
-    args = _parser().parse_args(argv)
-    try:
-        code: int = args.func(args)
-    except PlannerError as exc:
-        print(f"kappa-planner: error: {exc}", file=sys.stderr)
-        return 2
-    return code
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-import planner.sim as sim
+import planner_tools.sim as sim
 from planner.collision import prediction_at
 from planner.errors import InvalidInputError, PlanningError
 from planner.problem import (
@@ -22,7 +22,8 @@ from planner.problem import (
     Vehicle,
 )
 from planner.roads import demo_problem, straight, u_turn
-from planner.sim import (
+from planner.trajectory import Trajectory
+from planner_tools.sim import (
     BicycleModel,
     Goal,
     PlanPath,
@@ -36,7 +37,6 @@ from planner.sim import (
     step_exact,
     track,
 )
-from planner.trajectory import Trajectory
 
 MODEL = BicycleModel(wheelbase=2.7, rear_to_centre=1.35, max_steering=0.6)
 

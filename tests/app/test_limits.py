@@ -1,5 +1,8 @@
-"""Requests .ci/fuzz.sh (schemathesis) and its follow-up found answered 500 or hanging, now refused
-with a 422 naming the field; the smallest accepted values still plan."""
+"""app.limits: every range the API accepts lies inside the planner's own caps; the requests .ci/fuzz.sh
+(schemathesis) and its follow-up found answered 500 or hanging are refused with a 422 naming the field;
+the smallest accepted values still plan.
+
+(That every bound of a request field plans as a library problem: tests/planner/test_degenerate.py.)"""
 
 from __future__ import annotations
 
@@ -8,15 +11,42 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from app.schemas import (
+from app import limits as api
+from app.limits import (
     MAX_OBSTACLE_OUTLINE,
     MIN_OBSTACLE_SIZE,
     MIN_VEHICLE_ACCELERATION,
     MIN_VEHICLE_CURVATURE,
 )
+from planner import problem as planner
 
 #: a denormal: positive, so `gt=0` let it through; braking distances v²/a overflowed to inf
 DENORMAL = 5e-324
+
+
+#: (the API's limit, the planner's cap on the same quantity, whether the API's is an upper bound)
+PAIRS = [
+    (api.MAX_LANE_WIDTH, planner.MAX_SIZE, True),
+    (api.MAX_OBSTACLE_SIZE, planner.MAX_SIZE, True),
+    (api.MAX_VEHICLE_LENGTH, planner.MAX_SIZE, True),
+    (api.MAX_VEHICLE_WIDTH, planner.MAX_SIZE, True),
+    (api.MAX_VEHICLE_SPEED, planner.MAX_EGO_SPEED, True),
+    (api.MAX_VEHICLE_ACCELERATION, planner.MAX_ACCELERATION, True),
+    (api.MAX_VEHICLE_CURVATURE, planner.MAX_EGO_CURVATURE, True),
+    (api.MAX_PLAN_HORIZON, planner.MAX_HORIZON_TIME, True),
+    (api.MAX_TRAJECTORY_STEP, planner.MAX_HORIZON_TIME, True),
+    (api.MAX_PLAN_HORIZON / api.MIN_TRAJECTORY_STEP, planner.MAX_TRAJECTORY_POINTS, True),
+    (api.MAX_POINTS_PER_CANDIDATE, planner.MAX_NUM_POINTS, True),
+    (api.MAX_TOTAL_CANDIDATE_POINTS, planner.MAX_CANDIDATE_POINTS, True),
+    (api.MIN_TRAJECTORY_STEP, planner.MIN_DT, False),
+    (api.MIN_VEHICLE_ACCELERATION, planner.SMALLEST_LIMIT, False),
+    (api.MIN_VEHICLE_CURVATURE, planner.SMALLEST_LIMIT, False),
+]
+
+
+@pytest.mark.parametrize(("limit", "cap", "upper"), PAIRS)
+def test_the_api_accepts_only_what_the_planner_accepts(limit: float, cap: float, upper: bool) -> None:
+    assert limit < cap if upper else limit > cap
 
 
 def _set(body: dict[str, Any], path: str, value: Any) -> dict[str, Any]:
@@ -83,4 +113,6 @@ def test_the_smallest_accepted_values_plan(client: TestClient, demo: dict[str, A
     demo["obstacles"] = _circle(MIN_OBSTACLE_SIZE) + _box(MIN_OBSTACLE_SIZE)
     answer = client.post("/v1/plan", json=demo)
     assert answer.status_code == 200, answer.text
-    assert answer.json()["status"] in ("ok", "stopped", "fallback")
+    # no vehicle that cannot turn tighter than a 10 km radius drives the demo's U-turn: it brakes
+    assert answer.json()["status"] == "fallback"
+    assert "max_curvature" in answer.json()["message"]

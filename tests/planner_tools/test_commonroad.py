@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.schemas import PlanningRequest
-from planner import commonroad as cr
-from planner.cli import main as cli_main
-from planner.io import problem_from_json
+from app.models.planning import PlanningRequest
 from planner.pipeline import plan
+from planner_tools import commonroad as cr
+from planner_tools.cli import main as cli_main
+from planner_tools.io import problem_from_json
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "commonroad"
 

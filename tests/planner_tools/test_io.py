@@ -1,23 +1,20 @@
-"""The ``kappa-planner`` command line and the JSON request reader behind it."""
+"""The JSON request reader (``planner_tools.io``): the same problems as the HTTP layer's, every bad field
+named."""
 
 from __future__ import annotations
 
-import csv
 import json
-import tomllib
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from PIL import Image
 
-from app.schemas import PlanningRequest, demo_request, to_problem
-from planner.cli import main
+from app.conversions import demo_request, to_problem
+from app.models.planning import PlanningRequest
 from planner.errors import InvalidInputError
-from planner.io import problem_from_json, problem_to_json
 from planner.problem import PlanningProblem
-from planner.roads import straight
+from planner_tools.io import problem_from_json, problem_to_json
 
 ROOT = Path(__file__).resolve().parents[2]
 COMMONROAD = sorted(p for p in (ROOT / "tests/data/commonroad").glob("*.json") if p.name != "index.json")
@@ -102,71 +99,3 @@ def test_reader_checks_predictions() -> None:
     with pytest.raises(InvalidInputError) as err:
         problem_from_json(data)
     assert err.value.field == "obstacles[1].id"
-
-
-def test_entry_point_is_declared() -> None:
-    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
-    assert project["scripts"]["kappa-planner"] == "planner.cli:main"
-    assert any(dep.startswith("tqdm") for dep in project["dependencies"])
-
-
-@pytest.fixture
-def road(tmp_path: Path) -> Path:
-    """A short straight road with a cone to pass."""
-    request = {
-        "reference_line": straight(60.0, step=5.0).tolist(),
-        "lane": {"left_width": 5.0, "right_width": 3.5},
-        "obstacles": [{"id": "cone", "circle": {"center": [25.0, -0.5], "radius": 0.5}}],
-        "ego": {"x": 5.0, "y": 0.0, "heading": 0.0, "speed": 5.0},
-        "options": {"target_speed": 6.0, "num_candidates": 8},
-    }
-    path = tmp_path / "road.json"
-    path.write_text(json.dumps(request))
-    return path
-
-
-def test_simulate_writes_frames_metrics_and_a_gif(road: Path, tmp_path: Path, capsys: Any) -> None:
-    out = tmp_path / "run"
-    code = main(
-        ["simulate", str(road), "--out", str(out), "--duration", "0.6", "--frame-every", "0.3", "--quiet"]
-    )
-    assert code == 0
-    record = json.loads((out / "metrics.json").read_text())
-    assert record["generator"] == "transf_kappa"
-    metrics = record["metrics"]
-    assert metrics["steps"] == 6 and metrics["termination"] == "timeout"
-    assert metrics["sim_time"] == pytest.approx(0.6)
-    assert sum(metrics["status_counts"].values()) == 6
-    assert sorted(p.name for p in out.glob("frame_*.png")) == [
-        "frame_000.0s.png",
-        "frame_000.3s.png",
-        "frame_000.6s_final.png",
-    ]
-    with Image.open(out / "sim.gif") as gif:
-        assert gif.n_frames == 4  # cycles 0, 2, 4 and the final state
-    with (out / "steps.csv").open() as fh:
-        rows = list(csv.DictReader(fh))
-    assert len(rows) == 6 and float(rows[-1]["t"]) == pytest.approx(0.5)
-    assert "transf_kappa" in capsys.readouterr().out
-
-
-def test_compare_runs_both_generators(road: Path, tmp_path: Path) -> None:
-    out = tmp_path / "cmp"
-    assert main(["compare", str(road), "--out", str(out), "--duration", "0.3", "--no-gif", "--quiet"]) == 0
-    runs = json.loads((out / "metrics.json").read_text())["runs"]
-    assert sorted(runs) == ["naive", "transf_kappa"]
-    assert all(run["metrics"]["steps"] == 3 for run in runs.values())
-    assert (out / "compare.png").stat().st_size > 10_000
-    assert not (out / "compare.gif").exists()
-
-
-def test_invalid_request_exits_with_status_2(tmp_path: Path, capsys: Any) -> None:
-    bad = tmp_path / "bad.json"
-    bad.write_text(
-        json.dumps({"reference_line": [[0, 0], [10, 0]], "lane": {"left_width": 3, "right_width": 3}})
-    )
-    assert main(["simulate", str(bad), "--out", str(tmp_path / "x"), "--quiet"]) == 2
-    assert "ego: is required" in capsys.readouterr().err
-    assert main(["simulate", str(tmp_path / "missing.json"), "--out", str(tmp_path / "x"), "--quiet"]) == 2
-    (tmp_path / "text.json").write_text("not json")
-    assert main(["compare", str(tmp_path / "text.json"), "--out", str(tmp_path / "x"), "--quiet"]) == 2

@@ -1,7 +1,7 @@
 """Planning requests as plain JSON data ⇄ :class:`~planner.problem.PlanningProblem`, without pydantic.
 
 The format is the body of ``POST /v1/plan`` (``reference_line``, ``lane``, ``obstacles``, ``ego``,
-``vehicle``, ``options``); the HTTP layer validates it with its own models (``app.schemas``, with size
+``vehicle``, ``options``); the HTTP layer validates it with its own models (``app.models``, with size
 limits for a public service), this module is what local clients such as the command line use. It
 checks what the planner needs — required and unknown keys, JSON types (a number is a JSON number, not
 a string or a boolean), finiteness, signs, shapes — and raises

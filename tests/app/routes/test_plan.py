@@ -15,14 +15,16 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from app.main import app
+from app.deps import get_plan_executor
+from app.executor import Overloaded, PlanExecutor
+from app.main import app, create_app
+from app.models.plan import STAGES, PlanResponse
 from app.routes import plan as plan_route
-from app.schemas import PlanResponse
+from app.settings import Settings
 from planner.pipeline import plan
 from solvers.result import SolveInfo, SolverStatus
 
 TRAJECTORY_KEYS = {"t", "x", "y", "heading", "curvature", "v", "a", "s", "d"}
-TIMING_KEYS = {"total", "reference", "candidates", "lateral", "speed"}
 #: a straight road closed by a wall across it at x = 60 … 62
 BLOCKED: dict[str, Any] = {
     "reference_line": [[0.0, 0.0], [200.0, 0.0]],
@@ -66,9 +68,9 @@ def test_demo_plans_from_the_ego(client: TestClient, demo: dict[str, Any]) -> No
     diag = out["diagnostics"]
     assert diag["candidates"]["generated"] == options["num_candidates"]
     assert 0 < diag["candidates"]["collision_free"] <= diag["candidates"]["generated"]
-    assert diag["lateral_qp"]["status"] in ("solved", "solved_inaccurate")
-    assert SolverStatus(diag["speed"]["status"]).usable  # converged, or the best iterate of the SQP
-    assert set(diag["timing_ms"]) == TIMING_KEYS
+    assert diag["lateral_qp"]["status"] == "solved"
+    assert SolverStatus(diag["speed"]["status"]).usable  # an `ok` plan drives a usable speed profile
+    assert set(diag["timing_ms"]) == set(STAGES)
     timing = diag["timing_ms"]
     assert timing["total"] >= timing["reference"] + timing["candidates"] + timing["lateral"]
 
@@ -79,7 +81,6 @@ def test_candidates_only_on_request(client: TestClient, demo: dict[str, Any]) ->
     assert len(out["candidates"]) == 6
     for candidate in out["candidates"]:
         assert set(candidate) == {"points", "repaired"}
-        assert isinstance(candidate["repaired"], bool)
         assert candidate["points"] and all(set(p) == set("sdxy") for p in candidate["points"])
     # the same serialisation as /v1/candidates, the same candidates (they depend on the seed only)
     alone = client.post("/v1/candidates", json=demo).json()
@@ -165,9 +166,6 @@ def test_non_finite_plan_is_a_500_not_null(
     assert r.json()["error"]["code"] == "internal_error"
 
 
-# -- the OpenAPI document ----------------------------------------------------------------------
-
-
 def _check(value: Any, schema: dict[str, Any], components: dict[str, Any], where: str = "") -> None:
     """``value`` against the subset of JSON Schema the document uses ($ref, type, enum, required,
     properties, items, additionalProperties)."""
@@ -216,7 +214,7 @@ def test_answers_match_the_openapi_schema(client: TestClient, demo: dict[str, An
     assert response["properties"]["candidates"]["type"] == "array"  # never null
     assert components["SolverStatus"]["enum"] == [s.value for s in SolverStatus]
     assert set(components["TrajectoryPoint"]["required"]) == TRAJECTORY_KEYS
-    assert set(components["PlanTiming"]["required"]) == TIMING_KEYS
+    assert set(components["PlanTiming"]["required"]) == set(STAGES)
 
     demo["options"].update(num_candidates=3, return_candidates=True)
     for body in (demo, BLOCKED):
@@ -238,3 +236,16 @@ def test_time_budget_from_the_request_or_the_server_default(demo: dict[str, Any]
         r = tight.post("/v1/plan", json=demo)
         assert r.status_code == 422
         assert r.json()["error"]["details"][0]["field"] == "options.time_budget_ms"
+
+
+class _FullExecutor(PlanExecutor):
+    async def run(self, fn: Any, arg: Any) -> Any:
+        raise Overloaded("256 plans are queued or running")
+
+
+def test_overload_is_a_503_to_retry(demo: dict[str, Any]) -> None:
+    app = create_app(Settings(plan_processes=0))
+    app.dependency_overrides[get_plan_executor] = lambda: _FullExecutor(processes=0, max_pending=1)
+    r = TestClient(app).post("/v1/plan", json=demo, headers={"X-Request-ID": "busy"})
+    assert r.status_code == 503 and r.headers["Retry-After"] == "1" and r.headers["X-Request-ID"] == "busy"
+    assert r.json()["error"]["code"] == "overloaded" and "256 plans" in r.json()["error"]["message"]

@@ -1,7 +1,7 @@
-"""CommonRoad scenarios as planning requests, and the ``kappa-planner commonroad`` subcommand.
+"""CommonRoad scenarios as planning requests (the converter behind ``kappa-planner commonroad``).
 
 A CommonRoad scenario (XML: lanelet network, obstacles, planning problems) is reduced to one route and
-written in the service's request contract (:class:`app.schemas.PlanningRequest`):
+written in the service's request contract (:class:`app.models.planning.PlanningRequest`):
 
 * **route** — the lanelets from the ego's lanelet to a goal lanelet: a shortest path (networkx) over
   successor edges weighted by length and same-direction lane changes weighted by
@@ -23,7 +23,7 @@ written in the service's request contract (:class:`app.schemas.PlanningRequest`)
   shared requests (``target_speed``: the larger of the ego's speed, the middle of the goal's speed
   interval and :data:`MIN_TARGET_SPEED`).
 * **goal** (not part of the request) — ``s_min``, the arc length of the goal region's centroid on the
-  reference (at most the reference's length less a vehicle length), for :class:`planner.sim.Goal`;
+  reference (at most the reference's length less a vehicle length), for :class:`planner_tools.sim.Goal`;
   ``None`` for a goal given by time only (the simulator then drives to the reference's end). The
   goal's time window is recorded but not enforced.
 
@@ -35,14 +35,12 @@ Units: metres [m], seconds [s], radians [rad].
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import io
 import itertools
 import json
 import logging
 import math
-import sys
 import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -55,6 +53,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import gaussian_filter1d
 
 from planner.reference import FloatArray
+from planner_tools.extras import COMMONROAD, MissingExtraError
 
 #: spacing of the reference line's points [m]
 SPACING = 1.0
@@ -88,8 +87,6 @@ VEHICLE: dict[str, float] = {
 HORIZON_TIME, DT = 8.0, 0.1
 #: most predicted states per obstacle (the request's limit)
 MAX_STATES = 2000
-
-EXTRA_HINT = "install the optional extra: pip install 'kappa-planner[commonroad]'"
 
 
 class CommonRoadError(Exception):
@@ -291,7 +288,7 @@ class Conversion:
 
     Attributes:
         name: scenario name (file stem).
-        request: the planning request (JSON data of :class:`app.schemas.PlanningRequest`).
+        request: the planning request (JSON data of :class:`app.models.planning.PlanningRequest`).
         goal: ``s_min`` [m] on the reference or ``None``; ``time`` window [s] or ``None``; ``region``
             polygon [[x, y], …] or ``None`` (informative).
         info: route lanelet ids, length, obstacle counts, … (informative).
@@ -303,8 +300,8 @@ class Conversion:
     info: dict[str, Any] = field(default_factory=dict)
 
     def sim_goal(self) -> Any:
-        """The :class:`planner.sim.Goal` of ``goal`` (``None``: the simulator's default)."""
-        from planner.sim import Goal
+        """The :class:`planner_tools.sim.Goal` of ``goal`` (``None``: the simulator's default)."""
+        from planner_tools.sim import Goal
 
         s_min = self.goal.get("s_min")
         return None if s_min is None else Goal(s_min=float(s_min))
@@ -403,9 +400,9 @@ def load_json(path: str | Path) -> Conversion:
 
 def _require_commonroad() -> None:
     try:
-        import commonroad  # noqa: F401
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise CommonRoadError(f"reading CommonRoad XML needs commonroad-io: {EXTRA_HINT}") from exc
+        COMMONROAD.require("reading CommonRoad XML")
+    except MissingExtraError as exc:
+        raise CommonRoadError(str(exc)) from exc
 
 
 @contextlib.contextmanager
@@ -885,81 +882,3 @@ def load(path: str | Path, *, planning_problem_id: int | None = None) -> Convers
     if p.suffix.lower() == ".json":
         return load_json(p)
     return convert_scenario(p, planning_problem_id=planning_problem_id)
-
-
-# --------------------------------------------------------------------------------------------------
-# Command line: kappa-planner commonroad SCENARIO [--out DIR]
-# --------------------------------------------------------------------------------------------------
-
-
-def add_parser(sub: Any) -> argparse.ArgumentParser:
-    """Register the ``commonroad`` subcommand on ``kappa-planner``'s subparsers."""
-    from planner.cli import GENERATORS, _positive
-
-    p: argparse.ArgumentParser = sub.add_parser(
-        "commonroad",
-        help="convert a CommonRoad scenario and drive it in closed loop to its goal",
-        description="Convert a CommonRoad scenario (XML; or a request JSON from tests/data/commonroad, or a "
-        "reduced scenario JSON) to a planning request and drive it in closed loop to the goal of its "
-        f"planning problem. Reading XML needs commonroad-io ({EXTRA_HINT}).",
-    )
-    p.add_argument(
-        "scenario", type=Path, help="CommonRoad XML, planning request JSON or reduced scenario JSON"
-    )
-    p.add_argument("--out", type=Path, default=None, help="write request.json, metrics.json, … here")
-    p.add_argument(
-        "--planning-problem", type=int, default=None, help="planning problem id (default: smallest)"
-    )
-    p.add_argument("--generator", choices=GENERATORS, default=None, help="default: transf_kappa")
-    p.add_argument("--duration", type=_positive, default=None, help="longest simulated time [s]")
-    p.add_argument("--replan-period", type=_positive, default=0.1, help="time between plans [s]")
-    p.add_argument("--goal-s", type=float, default=None, help="goal: arc length reached [m] (overrides)")
-    p.add_argument("--frame-every", type=_positive, default=2.0, help="key frame period [s]")
-    p.add_argument("--no-gif", action="store_true", help="skip the animation")
-    p.add_argument("--gif-stride", type=int, default=2, help="a GIF frame every N cycles")
-    p.add_argument("--gif-dpi", type=int, default=100, help="GIF resolution [px/inch]")
-    p.add_argument(
-        "--centre-midway",
-        action="store_true",
-        help="a car referenced midway between its axles (its body yaws by the slip angle in turns)",
-    )
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=run_command)
-    return p
-
-
-def run_command(args: argparse.Namespace) -> int:
-    """``kappa-planner commonroad``: convert, simulate, print the metrics, write files to ``--out``."""
-    from planner import cli
-    from planner.errors import PlannerError
-    from planner.io import problem_from_json
-
-    try:
-        conv = load(args.scenario, planning_problem_id=args.planning_problem)
-    except (CommonRoadError, OSError, ValueError) as exc:
-        raise PlannerError(str(exc)) from exc
-    problem = problem_from_json(conv.request)
-    if args.goal_s is None and conv.goal.get("s_min") is not None:
-        args.goal_s = float(conv.goal["s_min"])
-    result = cli._run(problem, args.generator or problem.options.generator, args)
-    print(f"{conv.name}: {len(conv.request['obstacles'])} obstacles, goal s ≥ {args.goal_s}")
-    print(cli._summary([result]))
-    out: Path | None = args.out
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "request.json").write_text(json.dumps(conv.request) + "\n")
-        (out / "conversion.json").write_text(
-            json.dumps({"name": conv.name, "goal": conv.goal, "info": conv.info}, indent=1) + "\n"
-        )
-        cli.write_key_frames(result, out, every=args.frame_every)
-        if not args.no_gif:
-            quiet = args.quiet or not sys.stderr.isatty()
-            cli.write_gif([result], out / "sim.gif", stride=args.gif_stride, dpi=args.gif_dpi, quiet=quiet)
-        cli.write_steps_csv(result, out / "steps.csv")
-        record = {"scenario": str(args.scenario), **cli.run_record(result)}
-        (out / "metrics.json").write_text(json.dumps(record, indent=1, ensure_ascii=False) + "\n")
-        print(
-            f"wrote request.json, conversion.json, key frames, {'' if args.no_gif else 'sim.gif, '}"
-            f"steps.csv, metrics.json to {out}"
-        )
-    return 0
