@@ -48,14 +48,9 @@ from planner.trajectory import Path, Trajectory, frenet_path, polyline_path, sam
 from planner.validation import trajectory_violations
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
 from solvers.result import SolveInfo, SolverStatus
-from solvers.speed import (
-    SpeedProblem,
-    SpeedResult,
-    SpeedSolver,
-    braking_profile,
-    cruise_profile,
-    integrate_jerk,
-)
+from solvers.speed_problem import SpeedProblem, SpeedResult, integrate_jerk
+from solvers.speed_profiles import braking_profile, cruise_profile
+from solvers.speed_sqp import SpeedSolver
 
 Status = Literal["ok", "stopped", "fallback"]
 
@@ -156,14 +151,6 @@ class _Timer:
             self.ms[name] = self.ms.get(name, 0.0) + 1e3 * (time.perf_counter() - t0)
 
 
-#: lateral QP outcomes whose path is used (an unfinished iterate comes integrated from the initial
-#: state, so it is a consistent path; the trajectory checks decide whether it is good enough)
-_USABLE = {
-    SolverStatus.SOLVED,
-    SolverStatus.SOLVED_INACCURATE,
-    SolverStatus.MAX_ITERATIONS,
-    SolverStatus.TIME_LIMIT,
-}
 _NOT_RUN = SolveInfo(SolverStatus.FAILED, 0, 0.0, None, "not run")
 
 
@@ -279,7 +266,7 @@ class _LateralResult:
 
     @property
     def solved(self) -> bool:
-        return self.qp.info.status in (SolverStatus.SOLVED, SolverStatus.SOLVED_INACCURATE)
+        return self.qp.info.converged
 
     def better_than_unsolved(self) -> bool:
         """Solved, with no block on the way other than the road's end."""
@@ -361,7 +348,7 @@ def _lateral(
     )
     allowance = curvature_allowance(bounds.s, start, problem)
     qp = _lateral_qp(solver, bounds, d_ref, start, ref, allowance, timer.remaining_s())
-    if qp.info.status not in _USABLE:  # too fast for the road: keep at least the vehicle's limit
+    if not qp.info.usable:  # too fast for the road: keep at least the vehicle's limit
         allowance = np.full(bounds.s.shape, 0.99 * vehicle.max_curvature)
         qp = _lateral_qp(solver, bounds, d_ref, start, ref, allowance, timer.remaining_s())
     return _LateralResult(bounds, d_ref, bool(road_end), qp)
@@ -586,7 +573,7 @@ def _braking(
 
 @dataclass
 class _Solvers:
-    lateral: LateralQPSolver = field(default_factory=lambda: LateralQPSolver(refine_steps=0))
+    lateral: LateralQPSolver = field(default_factory=LateralQPSolver)
     speed: SpeedSolver = field(
         default_factory=lambda: SpeedSolver(
             max_iterations=2, tolerance=1e-3, restore_violation=SPEED_SLACK, qp_residual=1e-6
@@ -659,7 +646,9 @@ def plan(problem: PlanningProblem) -> PlanResult:
             }
             hit_from_behind = [v for _, b in tried for v in b if v in rear]
             if hit_from_behind:
-                others = [("the planned profile", planned)] if planned is not None and planned.info.ok else []
+                others = (
+                    [("the planned profile", planned)] if planned is not None and planned.info.usable else []
+                )
                 others.append(
                     ("keeping the speed", _braking(path, problem, steps, dt_speed, keep_speed=True))
                 )
@@ -706,7 +695,7 @@ def plan(problem: PlanningProblem) -> PlanResult:
 
     note = ""
     block_at = float(bounds.s[-1])  # where a block stops the path [m] (the bounds end before it)
-    if qp.info.status in _USABLE:
+    if qp.info.usable:  # an unfinished iterate comes integrated from the initial state: the checks decide
         path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
     elif blocked is not None:
         # Close to a block the few knots left may leave no room to steer: keep the current offset and
@@ -758,11 +747,11 @@ def plan(problem: PlanningProblem) -> PlanResult:
             # bound alone: more jerk hardly speeds up sooner.)
             speed = solve(EMERGENCY_JERK, s_lower)
         planned = speed
-        if speed.info.ok and speed.position_violation > POSITION_SLACK:
+        if speed.info.usable and speed.position_violation > POSITION_SLACK:
             # Past a stop or a space-time bound (the solver's limits are soft): full braking keeps every
             # s(t) as small as the limits allow, so it is the answer here (no creeping up to a block).
             speed = _braking(path, problem, steps, dt_speed)
-    if not speed.info.ok:
+    if not speed.info.usable:
         return fallback(f"speed profile failed: {speed.info.status}", path, qp.info, speed.info)
     if reason := timer.overrun("speed"):
         return fallback(reason, path, qp.info, speed.info)
