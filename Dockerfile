@@ -2,8 +2,9 @@
 #
 #   docker build -t kappa-planner . && docker run --rm -p 8000:8000 kappa-planner
 #
-# Two stages: `builder` installs the dependencies and then the project (non-editable) into a virtual
-# environment; the final image holds only that environment on a slim Python, run by a non-root user.
+# Two stages: `builder` installs the service's dependencies (`project.dependencies`, no extras) and
+# then the service (non-editable) into a virtual environment; the final image holds only that
+# environment on a slim Python, run by a non-root user.
 # CI has no Docker engine: .ci/container.sh replays the builder's RUN steps in a fresh virtual
 # environment and runs this file's CMD with its ENV, then probes it with its HEALTHCHECK, so keep RUN
 # steps to plain commands in $VIRTUAL_ENV and the working directory.
@@ -25,14 +26,18 @@ COPY pyproject.toml ./
 RUN python -c "import tomllib; print(*tomllib.load(open('pyproject.toml', 'rb'))['project']['dependencies'], sep='\n')" > requirements.txt \
     && python -m pip install --no-cache-dir -r requirements.txt
 
-# Then the project itself, not editable and without further dependencies; `pip check` fails the build
-# if the two steps disagree.
+# Then the service itself (app, planner, solvers; not planner_tools, the command line and its extras),
+# not editable and without further dependencies; `pip check` fails the build if the two steps disagree,
+# and the last command if the tooling or its extra `tools` got in.
 COPY README.md ./
 COPY app ./app
 COPY planner ./planner
 COPY solvers ./solvers
 RUN python -m pip install --no-cache-dir --no-deps . \
-    && python -m pip check
+    && python -m pip check \
+    && python -c "import importlib.util, sys; \
+        found = [m for m in ('planner_tools', 'matplotlib', 'PIL', 'tqdm') if importlib.util.find_spec(m)]; \
+        sys.exit(f'tooling in the service image: {found}' if found else 0)"
 
 
 FROM python:3.11-slim-bookworm

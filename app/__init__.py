@@ -1,3 +1,3 @@
-"""The HTTP layer of kappa-planner: FastAPI app, request/response schemas, error mapping."""
+"""The HTTP layer of kappa-planner: FastAPI app, request/response models and their limits, error mapping."""
 
 __version__ = "0.1.0"

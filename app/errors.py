@@ -25,10 +25,10 @@ from typing import Any, cast
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from app.schemas import UNION_TAGS
+from app.models.common import UNION_TAGS
+from app.models.errors import ErrorDetail, ErrorInfo, ErrorResponse
 from planner.errors import InvalidInputError, InvalidReferenceError, PlannerError
 
 logger = logging.getLogger(__name__)
@@ -49,27 +49,6 @@ HTTP_CODES: dict[int, str] = {
 }
 #: most details listed in one answer
 MAX_DETAILS = 50
-
-
-class ErrorDetail(BaseModel):
-    """One problem with one field."""
-
-    field: str = Field(description="Dotted path into the request body; empty for the whole body.")
-    message: str
-
-
-class ErrorInfo(BaseModel):
-    """What went wrong."""
-
-    code: str = Field(description="Stable machine-readable code, e.g. `invalid_request`.")
-    message: str = Field(description="Human-readable summary.")
-    details: list[ErrorDetail] = Field(description="The problems, field by field; may be empty.")
-
-
-class ErrorResponse(BaseModel):
-    """The body of every error answer."""
-
-    error: ErrorInfo
 
 
 #: OpenAPI ``responses`` of an endpoint that takes a JSON body

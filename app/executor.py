@@ -2,19 +2,16 @@
 
 A plan is pure Python and numpy for most of its time and holds the GIL nearly all of it. Run in the
 event loop's process, even in threads, it delays everything the loop does — ``/healthz`` included —
-by whole GIL switch intervals per step (measured with ``bench/load.py``, plans in the threadpool:
-8 clients, /healthz p50 45–60 ms, max 130–195 ms; 200 clients, /healthz waits up to 20 s behind the
-plans in the threadpool). So each uvicorn worker keeps a pool of ``processes`` worker processes
-(:class:`concurrent.futures.ProcessPoolExecutor`, spawned, not forked from a process with threads) that
-run the plans, and its own process only parses, validates and answers (same loads, on 2 CPUs that
-other jobs kept busy: /healthz p50 2–5 ms, max 10–48 ms). The pool processes run at a lower priority
-(:data:`PLAN_NICENESS`), so that a busy CPU still serves the event loop first.
+by whole GIL switch intervals per step (``bench/load.py`` measures it). So each uvicorn worker keeps a
+pool of ``processes`` worker processes (:class:`concurrent.futures.ProcessPoolExecutor`, spawned, not
+forked from a process with threads) that run the plans, and its own process only parses, validates and
+answers. The pool processes run at a lower priority (:data:`PLAN_NICENESS`), so that a busy CPU still
+serves the event loop first.
 
 The pool is bounded twice: ``processes`` plans run at once, twice as many are handed to the pool (the
-rest wait in the event loop, where they cost nothing: handed over all at once, a burst of 200 kept the
-pool's helper threads taking the GIL from the loop for 50–270 ms), and at most ``max_pending`` are
-queued or running (:exc:`Overloaded` beyond, answered 503), so a burst queues in memory, not without
-end.
+rest wait in the event loop, where they cost nothing: handed over all at once, a burst keeps the pool's
+helper threads taking the GIL from the loop), and at most ``max_pending`` are queued or running
+(:exc:`Overloaded` beyond, answered 503), so a burst queues in memory, not without end.
 
 ``processes = 0``, or a pool never started (an app whose lifespan did not run, such as a
 ``TestClient`` not used as a context manager), runs the work in a thread of the worker itself, one

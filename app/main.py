@@ -1,8 +1,10 @@
 """The application factory: ``uvicorn app.main:app`` serves :data:`app`.
 
 Routes live in :mod:`app.routes` (one module per resource), error answers in :mod:`app.errors`,
-request and response models in :mod:`app.schemas`, settings in :mod:`app.settings`, where plans run
-in :mod:`app.executor`, logs and metrics in :mod:`app.logs` and :mod:`app.metrics`.
+request and response models in :mod:`app.models` (their limits in :mod:`app.limits`, conversions to
+the planner in :mod:`app.conversions`), settings in :mod:`app.settings`, where plans run in
+:mod:`app.executor` (both reach the routes through :mod:`app.deps`), logs and metrics in
+:mod:`app.logs` and :mod:`app.metrics`.
 """
 
 from __future__ import annotations
@@ -11,6 +13,8 @@ from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI
+from fastapi.routing import APIRoute
+from starlette.routing import BaseRoute, Route
 
 from app import __version__
 from app.errors import install_error_handlers
@@ -32,6 +36,16 @@ counter-clockwise from +x. Every request body is read as JSON whatever its Conte
 works as is. Every error answer has the shape
 `{"error": {"code", "message", "details": [{"field", "message"}]}}`.
 """
+
+
+def _every_route(app: FastAPI) -> list[BaseRoute]:
+    """Every route of ``app``, once: FastAPI's own (``/openapi.json``, ``/docs``, …) and the routers'.
+
+    ``app.routes`` alone does not serve: depending on FastAPI's version it lists an included router as
+    one entry without a path, or a copy of each of its routes.
+    """
+    own = [r for r in app.routes if isinstance(r, Route) and not isinstance(r, APIRoute)]
+    return [*own, *(route for router in routers for route in router.routes)]
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -60,7 +74,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         separate_input_output_schemas=False,
         lifespan=lifespan,
     )
-    app.state.settings = settings
+    app.state.settings = settings  # app.deps hands these two to the routes
     app.state.plan_executor = executor
     # the last added is the outermost: ids, logs and metrics see every answer, 413s included
     app.add_middleware(JSONBodyMiddleware)
@@ -68,9 +82,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_error_handlers(app)
     for router in routers:
         app.include_router(router)
-    routes = [*app.routes, *(route for router in routers for route in router.routes)]
-    paths = {path for route in routes if isinstance(path := getattr(route, "path", None), str)}
-    app.add_middleware(RequestContextMiddleware, paths=paths)
+    app.add_middleware(RequestContextMiddleware, routes=_every_route(app))
     return app
 
 

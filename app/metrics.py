@@ -5,8 +5,8 @@
 * ``kappa_http_request_duration_seconds{route}`` — time from the request to the end of its answer [s];
 * ``kappa_plans_total{status}`` — plans by their status (``ok``, ``stopped``, ``fallback``);
 * ``kappa_plan_stage_duration_seconds{stage}`` — wall time of the planner's stages as the plan's
-  ``diagnostics.timing_ms`` reports them (``total``, ``reference``, ``candidates``, ``lateral``,
-  ``speed``) [s]; a stage that did not run is not observed.
+  ``diagnostics.timing_ms`` reports them (:data:`app.models.plan.STAGES`) [s]; a stage that did not
+  run is not observed.
 
 Several uvicorn workers: with ``PROMETHEUS_MULTIPROC_DIR`` set before the workers start (``python -m
 app`` does it when ``KAPPA_WORKERS`` > 1), every worker writes its values there and each scrape sums
@@ -24,12 +24,11 @@ from prometheus_client import REGISTRY, CollectorRegistry, Counter, Histogram, d
 from prometheus_client.exposition import choose_encoder
 from prometheus_client.multiprocess import MultiProcessCollector
 
+from app.models.plan import STAGES
 from planner.pipeline import Status as PlanStatus
 
 #: environment variable of prometheus-client's multiprocess mode
 MULTIPROC_ENV = "PROMETHEUS_MULTIPROC_DIR"
-#: the stages of ``PlanDiagnostics.timing_ms`` that are observed
-STAGES = ("total", "reference", "candidates", "lateral", "speed")
 #: histogram buckets of a stage of the planner [s]
 STAGE_BUCKETS = (0.001, 0.0025, 0.005, 0.01, 0.015, 0.02, 0.03, 0.05, 0.075, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0)
 #: histogram buckets of an HTTP request [s] (queueing included)
@@ -51,7 +50,7 @@ HTTP_DURATION = Histogram(
 PLANS = Counter("kappa_plans_total", "Plans by status (ok, stopped, fallback).", ("status",))
 PLAN_STAGE_DURATION = Histogram(
     "kappa_plan_stage_duration_seconds",
-    "Wall time of a stage of the planner (total, reference, candidates, lateral, speed) [s].",
+    f"Wall time of a stage of the planner ({', '.join(STAGES)}) [s].",
     ("stage",),
     buckets=STAGE_BUCKETS,
 )

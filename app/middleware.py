@@ -6,11 +6,12 @@ from __future__ import annotations
 import logging
 import time
 import uuid
-from collections.abc import Collection
+from collections.abc import Sequence
 
 from fastapi import HTTPException
 from starlette.datastructures import Headers, MutableHeaders
 from starlette.requests import Request
+from starlette.routing import BaseRoute, Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from app import metrics
@@ -50,18 +51,20 @@ class RequestContextMiddleware:
     route leaves in ``request.state``).
     """
 
-    def __init__(self, app: ASGIApp, paths: Collection[str]) -> None:
-        """``paths``: the app's route paths, the labels of requests that never reached a route (413)."""
+    def __init__(self, app: ASGIApp, routes: Sequence[BaseRoute]) -> None:
+        """``routes``: the app's routes (``app.routes``), which label a request that never reached the
+        router (a 413)."""
         self.app = app
-        self.paths = frozenset(paths)
+        self.routes = routes
 
     def route_of(self, scope: Scope) -> str:
-        """The path template of the route that served ``scope`` (also on a 405 or a 413), else
-        ``unmatched``."""
-        path = getattr(scope.get("route"), "path", None)
-        if isinstance(path, str):
-            return path
-        return scope["path"] if scope["path"] in self.paths else UNMATCHED
+        """The path template of the route that served ``scope`` (also on a 405), or of the route that
+        would have (a 413), else ``unmatched``."""
+        route = scope.get("route")
+        if route is None:
+            route = next((r for r in self.routes if r.matches(scope)[0] is not Match.NONE), None)
+        path = getattr(route, "path", None)
+        return path if isinstance(path, str) else UNMATCHED
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":

@@ -15,6 +15,8 @@ from typing import Literal
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from app.limits import MAX_TIME_BUDGET_MS, MIN_TIME_BUDGET_MS
+
 LogLevel = Literal["critical", "error", "warning", "info", "debug"]
 
 
@@ -75,8 +77,8 @@ class Settings(BaseSettings):
     )
     time_budget_ms: float = Field(
         1000.0,
-        ge=1.0,
-        le=60_000.0,
+        ge=MIN_TIME_BUDGET_MS,
+        le=MAX_TIME_BUDGET_MS,
         description="Compute budget of a plan whose request sets no options.time_budget_ms [ms]: a stage "
         "that ends past it makes the answer a braking fallback.",
     )

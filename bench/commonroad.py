@@ -3,8 +3,8 @@ a markdown table (asserts nothing; also written to ``bench/results/commonroad.md
 
 Scenarios: the planning requests ``tests/data/commonroad/*.json`` (converted from the CommonRoad
 benchmark by the shared reference converter; ``index.json`` beside them gives each goal), or with
-``--xml DIR`` the CommonRoad XML files converted by :mod:`planner.commonroad` (needs the ``commonroad``
-extra). Each is driven by :func:`planner.sim.simulate` with a replan every 0.1 s until the goal, a
+``--xml DIR`` the CommonRoad XML files converted by :mod:`planner_tools.commonroad` (needs the ``commonroad``
+extra). Each is driven by :func:`planner_tools.sim.simulate` with a replan every 0.1 s until the goal, a
 collision or ``--duration`` simulated seconds (default 35 s).
 
 Goal: the scenario's goal region as an arc length ``s_min`` on the reference; a scenario whose goal is a
@@ -29,11 +29,11 @@ from pathlib import Path
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from planner.commonroad import Conversion, load  # noqa: E402 (after the path fix)
 from planner.frenet import to_frenet  # noqa: E402
-from planner.io import problem_from_json  # noqa: E402
 from planner.reference import build_reference  # noqa: E402
-from planner.sim import Goal, SimResult, simulate  # noqa: E402
+from planner_tools.commonroad import Conversion, load  # noqa: E402 (after the path fix)
+from planner_tools.io import problem_from_json  # noqa: E402
+from planner_tools.sim import Goal, SimResult, simulate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 REQUESTS = ROOT / "tests" / "data" / "commonroad"
@@ -115,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
         out = args.out or RESULTS / "commonroad.md"
     else:
         paths = sorted(args.xml.glob("*.xml"))
-        source = f"CommonRoad XML in {args.xml}, converted by planner.commonroad"
+        source = f"CommonRoad XML in {args.xml}, converted by planner_tools.commonroad"
         out = args.out or RESULTS / "commonroad_xml.md"
     if args.only:
         paths = [p for p in paths if p.stem in set(args.only)]

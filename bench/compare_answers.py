@@ -12,7 +12,7 @@ Plans run in one plan process, in a fixed order (the solvers warm-start from the
 difference of any number of the trajectory and candidates, and the largest of all; the exit status is 1
 when a status, a message, a shape or a number differs by more than ``--tolerance`` (default 1e-9).
 Wall times (``timing_ms``, ``solve_time_ms``) are left out: they differ on every run. So are
-``--ignore`` keys (dotted paths in the answer, e.g. ``diagnostics.speed``) whose meaning a change fixed
+``--ignore`` keys (dotted paths, e.g. ``answer.diagnostics.speed``) whose meaning a change fixed
 on purpose.
 """
 

@@ -4,7 +4,7 @@ tables, also written to ``bench/results/peers.md``).
 On the CommonRoad scenarios (the requests in ``tests/data/commonroad`` and, for the peers, the XML
 files they were converted from, ``--xml-dir``, default ``../shared/scenarios/commonroad``):
 
-* **planners** — our planner in closed loop (:func:`planner.sim.simulate`, a plan every 0.1 s) and
+* **planners** — our planner in closed loop (:func:`planner_tools.sim.simulate`, a plan every 0.1 s) and
   commonroad-reactive-planner (sampling Frenet planner, Werling et al.) in its own closed loop as its
   example ``run_planner.py`` does it (its route planner's reference path and its default configuration,
   re-planning every 0.1 s — ``replanning_frequency = 1`` — without multiprocessing), both for
@@ -160,8 +160,8 @@ def road_points(request: dict[str, Any], count: int, seed: int = 0) -> np.ndarra
     import shapely
 
     from planner.frenet import to_cartesian
-    from planner.io import problem_from_json
     from planner.reference import build_reference, widths_at
+    from planner_tools.io import problem_from_json
 
     problem = problem_from_json(request)
     ref = build_reference(problem.reference_line)
@@ -184,11 +184,11 @@ def road_points(request: dict[str, Any], count: int, seed: int = 0) -> np.ndarra
 
 
 def ours(path: Path, cycles: int, points: np.ndarray) -> dict[str, Any]:
-    from planner.commonroad import load
     from planner.frenet import to_frenet
-    from planner.io import problem_from_json
     from planner.reference import build_reference
-    from planner.sim import Goal, simulate
+    from planner_tools.commonroad import load
+    from planner_tools.io import problem_from_json
+    from planner_tools.sim import Goal, simulate
 
     conv = load(path)
     problem = problem_from_json(conv.request)

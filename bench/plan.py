@@ -36,7 +36,7 @@ from planner.problem import (
 from planner.roads import demo_problem, straight
 from planner.thread_solvers import new_solvers
 from solvers.lateral_qp import LateralQPProblem, LateralQPSolver
-from solvers.speed import SpeedProblem
+from solvers.speed_problem import SpeedProblem
 
 
 def timings(fn: Callable[[], object], repeats: int) -> np.ndarray:
@@ -60,7 +60,7 @@ def bench_lateral() -> None:
     n, ds = 200, 0.5
     s = np.arange(n) * ds
     ref = 1.5 / (1.0 + np.exp(-(s - 40.0) / 4.0))
-    solver = LateralQPSolver(refine_steps=0)
+    solver = LateralQPSolver()
     free = LateralQPProblem(ds=ds, d_lower=np.full(n, -3.0), d_upper=np.full(n, 3.0), d_ref=ref, jerk_max=0.5)
     lower = np.where((s > 50) & (s < 60), 1.0, -3.0)
     pushed = replace(free, d_lower=lower, d_ref=np.zeros(n))

@@ -28,7 +28,7 @@ from planner.speed import Profile, ProfileKind, braking, profile_grid
 from planner.st_bounds import followers, moving_obstacles
 from planner.trajectory import Path, Trajectory
 from planner.validation import HITS, Violation, ViolationKind, trajectory_violations
-from solvers.speed import SpeedResult
+from solvers.speed_problem import SpeedResult
 
 
 @dataclass(frozen=True)
@@ -86,9 +86,9 @@ def fallback(
     hit_from_behind = [v for _, b in tried for v in b if _from_behind(v, rear)]
     if not hit_from_behind:
         return Fallback(traj, tuple(bad), message, ProfileKind.BRAKING)
-    others = (
-        [("the planned profile", Profile.optimised(planned))] if planned is not None and planned.ok else []
-    )
+    others: list[tuple[str, Profile]] = []
+    if planned is not None and planned.info.usable:
+        others.append(("the planned profile", Profile.optimised(planned)))
     others.append(("keeping the speed", braking(path, problem, steps, dt, config.speed, keep_speed=True)))
     weighed: list[tuple[str, Profile | None, Trajectory, list[Violation]]] = []
     for label, profile in others:

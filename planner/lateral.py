@@ -27,18 +27,7 @@ from planner.problem import PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Path, frenet_path
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
-from solvers.result import SolveInfo, SolverStatus
-
-#: lateral QP outcomes whose path is used (an unfinished iterate comes integrated from the initial
-#: state, so it is a consistent path; the trajectory checks decide whether it is good enough)
-USABLE = frozenset(
-    {
-        SolverStatus.SOLVED,
-        SolverStatus.SOLVED_INACCURATE,
-        SolverStatus.MAX_ITERATIONS,
-        SolverStatus.TIME_LIMIT,
-    }
-)
+from solvers.result import SolveInfo
 
 
 def knots(start: EgoFrenet, s_end: float, config: LateralConfig = DEFAULT_CONFIG.lateral) -> FloatArray:
@@ -130,13 +119,13 @@ class _Attempt:
 
     def better_than_unsolved(self) -> bool:
         """Solved, with no block on the way other than the road's end."""
-        return self.qp.info.ok and (self.bounds.blocked is None or self.road_end)
+        return self.qp.info.converged and (self.bounds.blocked is None or self.road_end)
 
     def rank(self) -> tuple[float, bool]:
         """How good: the farther the first block (none: infinitely far), then solved over not."""
         blocked = self.bounds.blocked
         far = np.inf if blocked is None or self.road_end else float(self.bounds.s[-1])
-        return far, self.qp.info.ok
+        return far, self.qp.info.converged
 
 
 def _qp_bounds(
@@ -201,7 +190,7 @@ def _attempt(
     bounds, d_ref = _qp_bounds(bounds, d_ref, start, reach, vehicle.length)
     allowance = curvature_allowance(bounds.s, start, problem, config)
     qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
-    if qp.info.status not in USABLE:  # too fast for the road: keep at least the vehicle's limit
+    if not qp.info.usable:  # too fast for the road: keep at least the vehicle's limit
         allowance = np.full(bounds.s.shape, config.lateral.retry_curvature_share * vehicle.max_curvature)
         qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
     return _Attempt(bounds, d_ref, bool(road_end), qp)
@@ -269,7 +258,7 @@ def lateral_stage(
         if relaxed.rank() > attempt.rank():
             attempt = relaxed
     bounds, qp = attempt.bounds, attempt.qp
-    if qp.info.status in USABLE:
+    if qp.info.usable:  # an unfinished iterate comes integrated from the initial state: the checks decide
         path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
         return LateralPlan(path, qp.info, bounds, bounds.blocked, attempt.road_end)
     if bounds.blocked is None:

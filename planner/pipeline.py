@@ -34,7 +34,7 @@ from planner.timing import StageTimer
 from planner.trajectory import Path, Trajectory, polyline_path
 from planner.validation import Violation, trajectory_violations
 from solvers.result import SolveInfo
-from solvers.speed import SpeedResult
+from solvers.speed_problem import SpeedResult
 
 __all__ = ["PlanDiagnostics", "PlanResult", "Status", "plan"]
 
@@ -73,7 +73,7 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
     with timer.stage("speed"):
         speed = speed_stage(solvers.speed, ref, lateral, path, problem, start, config)
     sqp = speed.solved
-    if not sqp.ok:
+    if not sqp.info.usable:
         return run.fallback(
             f"speed profile failed: {sqp.info.status}", path, candidate, lateral.info, sqp.info
         )

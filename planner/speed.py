@@ -34,14 +34,9 @@ from planner.problem import Options, PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
 from planner.st_bounds import SpaceTimeBounds, space_time_bounds
 from planner.trajectory import Path, Trajectory, sample
-from solvers.speed import (
-    SpeedProblem,
-    SpeedResult,
-    SpeedSolver,
-    braking_profile,
-    cruise_profile,
-    integrate_jerk,
-)
+from solvers.speed_problem import SpeedProblem, SpeedResult, integrate_jerk
+from solvers.speed_profiles import braking_profile, cruise_profile
+from solvers.speed_sqp import SpeedSolver
 
 
 class ProfileKind(StrEnum):
@@ -210,7 +205,7 @@ def speed_stage(
         # more jerk hardly speeds up sooner.)
         speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config)
     profile = Profile.optimised(speed)
-    if speed.info.ok and speed.position_violation > cfg.position_slack:
+    if speed.info.usable and speed.position_violation > cfg.position_slack:
         # Past a stop or a space-time bound (the solver's limits are soft): full braking keeps every
         # s(t) as small as the limits allow, so it is the answer here (no creeping up to a block).
         profile = braking(path, problem, steps, dt, cfg)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from solvers.lateral_qp import LateralQPSolver
-from solvers.speed import SpeedSolver
+from solvers.speed_sqp import SpeedSolver
 
 #: solver sets kept per thread (one per solver configuration), the least recently used dropped first
 MAX_SETS = 4
@@ -30,7 +30,7 @@ def new_solvers(config: PlannerConfig = DEFAULT_CONFIG) -> Solvers:
     """Solvers configured as :func:`planner.pipeline.plan` uses them under ``config``."""
     speed = config.speed
     return Solvers(
-        lateral=LateralQPSolver(refine_steps=0),
+        lateral=LateralQPSolver(),
         speed=SpeedSolver(
             max_iterations=speed.sqp_iterations,
             tolerance=speed.sqp_tolerance,

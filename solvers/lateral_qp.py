@@ -51,29 +51,29 @@ ten times the previous one, which gives a smoothing length of about ``√10 ≈ 
 terms act on one knot and are worth about ten knots of their per-knot counterparts, so the path ends
 settled (parallel to the reference, straight) and, if ``end_d`` is given, near it.
 
-Solving: OSQP (ADMM, ``eps = 1e-3``) then its polishing, exact when it guesses the active set right —
-the common case, ~1 ms at ``n = 200``. Where a bound is pressed over a stretch the optimum touches it at
-a few knots only and sags by less than the ADMM tolerance in between; polishing then fails and an
-active-set refinement (sparse KKT solves from OSQP's iterate) finishes the job, exact but ~10–50 ms.
-See :class:`LateralQPSolver` for the knobs (``refine_steps=0`` trades exactness for speed).
+Solving: OSQP (ADMM, ``eps = 1e-3``) then its polishing, which solves the equality system of the active
+set it guesses from the ADMM iterate: exact when the guess is right, the common case. Where a bound is
+pressed over a stretch the optimum touches it at a few knots only and sags by less than the ADMM
+tolerance in between; polishing then fails and the ADMM iterate, accurate to about ``eps``, is returned
+(``solved_inaccurate`` when it breaks a constraint by more than ``feasibility_tol``; its largest
+violation is ``info.max_violation``).
 """
 
 from __future__ import annotations
 
 import math
-import threading
 import time
 from collections import OrderedDict
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
 import osqp
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from solvers.result import SolveInfo, SolverStatus
+from solvers.validation import check_ordered, check_weights, float_array, integer, scalar
 
 FloatArray = NDArray[np.float64]
 
@@ -85,7 +85,6 @@ __all__ = [
     "build_qp_matrices",
     "integrate_profile",
     "objective",
-    "solve_lateral_qp",
 ]
 
 #: OSQP's "no time limit" (its own default) [s]
@@ -117,53 +116,7 @@ class LateralWeights:
     end_curvature: float = 1000.0
 
     def __post_init__(self) -> None:
-        for name in self.__dataclass_fields__:
-            value = getattr(self, name)
-            if not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
-                raise ValueError(f"weights.{name}: must be a finite number ≥ 0, got {value!r}")
-            object.__setattr__(self, name, float(value))
-
-
-def _finite_scalar(name: str, value: object) -> float:
-    try:
-        result = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: must be a number, got {value!r}") from None
-    if not math.isfinite(result):
-        raise ValueError(f"{name}: must be finite, got {result}")
-    return result
-
-
-def _knot_array(name: str, value: ArrayLike, n: int, *, bound: str | None = None) -> FloatArray:
-    """A read-only float64 copy of ``value``, checked to be shape ``(n,)``.
-
-    ``bound`` is ``"lower"`` (``−∞`` allowed), ``"upper"`` (``+∞`` allowed) or ``None`` (all finite).
-    """
-    try:
-        array = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: must be an array of numbers") from None
-    if array.shape != (n,):
-        raise ValueError(f"{name}: expected shape ({n},), got {array.shape}")
-    if np.isnan(array).any():
-        raise ValueError(f"{name}: contains NaN at knot {int(np.flatnonzero(np.isnan(array))[0])}")
-    if bound == "lower":
-        bad = np.isposinf(array)
-    elif bound == "upper":
-        bad = np.isneginf(array)
-    else:
-        bad = ~np.isfinite(array)
-    if bad.any():
-        raise ValueError(f"{name}: non-finite value {array[bad][0]} at knot {int(np.flatnonzero(bad)[0])}")
-    array.setflags(write=False)
-    return array
-
-
-def _check_ordered(lower_name: str, lower: FloatArray, upper_name: str, upper: FloatArray) -> None:
-    bad = lower > upper
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"{lower_name} > {upper_name} at knot {i}: {lower[i]} > {upper[i]}")
+        check_weights(self, zero_allowed=[entry.name for entry in fields(self)])
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -206,16 +159,13 @@ class LateralQPProblem:
         def put(name: str, value: object) -> None:
             object.__setattr__(self, name, value)
 
-        ds = _finite_scalar("ds", self.ds)
+        ds = scalar("ds", self.ds)
         if ds <= 0:
             raise ValueError(f"ds: must be > 0, got {ds}")
         put("ds", ds)
 
-        try:
-            jerk_max = float(self.jerk_max)
-        except (TypeError, ValueError):
-            raise ValueError(f"jerk_max: must be a number, got {self.jerk_max!r}") from None
-        if math.isnan(jerk_max) or jerk_max <= 0:
+        jerk_max = scalar("jerk_max", self.jerk_max, allow_posinf=True)
+        if jerk_max <= 0:
             raise ValueError(f"jerk_max: must be > 0 (or +inf), got {jerk_max}")
         put("jerk_max", jerk_max)
 
@@ -223,26 +173,26 @@ class LateralQPProblem:
         if d_ref_raw.ndim != 1 or d_ref_raw.shape[0] < 3:
             raise ValueError(f"d_ref: expected a 1-D array of at least 3 knots, got shape {d_ref_raw.shape}")
         n = int(d_ref_raw.shape[0])
-        put("d_ref", _knot_array("d_ref", self.d_ref, n))
-        put("d_lower", _knot_array("d_lower", self.d_lower, n, bound="lower"))
-        put("d_upper", _knot_array("d_upper", self.d_upper, n, bound="upper"))
-        _check_ordered("d_lower", self.d_lower, "d_upper", self.d_upper)
+        put("d_ref", float_array("d_ref", self.d_ref, size=n, item="knot"))
+        put("d_lower", float_array("d_lower", self.d_lower, size=n, allow_neginf=True, item="knot"))
+        put("d_upper", float_array("d_upper", self.d_upper, size=n, allow_posinf=True, item="knot"))
+        check_ordered("d_lower", self.d_lower, "d_upper", self.d_upper)
         for prefix in ("dd", "ddd"):
             lower_name, upper_name = f"{prefix}_lower", f"{prefix}_upper"
             lower, upper = getattr(self, lower_name), getattr(self, upper_name)
             if lower is not None:
-                lower = _knot_array(lower_name, lower, n, bound="lower")
+                lower = float_array(lower_name, lower, size=n, allow_neginf=True, item="knot")
                 put(lower_name, lower)
             if upper is not None:
-                upper = _knot_array(upper_name, upper, n, bound="upper")
+                upper = float_array(upper_name, upper, size=n, allow_posinf=True, item="knot")
                 put(upper_name, upper)
             if lower is not None and upper is not None:
-                _check_ordered(lower_name, lower, upper_name, upper)
+                check_ordered(lower_name, lower, upper_name, upper)
 
         for name in ("d0", "dd0", "ddd0"):
-            put(name, _finite_scalar(name, getattr(self, name)))
+            put(name, scalar(name, getattr(self, name)))
         if self.end_d is not None:
-            put("end_d", _finite_scalar("end_d", self.end_d))
+            put("end_d", scalar("end_d", self.end_d))
         if not isinstance(self.weights, LateralWeights):
             raise ValueError(f"weights: expected LateralWeights, got {type(self.weights).__name__}")
 
@@ -272,10 +222,15 @@ class LateralQPProblem:
 class LateralQPResult:
     """The solution of a lateral QP.
 
-    ``d`` [m], ``dd`` (= d′) [-], ``ddd`` (= d″) [1/m] have one value per knot and never contain NaN: when
-    the solve failed (``info.ok`` false) they hold OSQP's last iterate if it is finite, else the reference
-    clipped to the bounds (with its finite-difference derivatives) — usable for display or as a fallback,
-    but not a solution of the QP. ``x`` is the raw decision vector ``[d, d′, d″]``.
+    ``d`` [m], ``dd`` (= d′) [-], ``ddd`` (= d″) [1/m] have one value per knot and never contain NaN. When
+    the solve did not converge (``info.converged`` false) they hold, out of iterations or time
+    (``max_iterations``, ``time_limit``), the last iterate's ``d″`` integrated from the initial state: a
+    consistent path, usable (``info.usable``) after the caller's own checks, but the ``d`` bounds may be
+    broken; otherwise (``infeasible``, ``failed``) the reference clipped to the bounds (with its
+    finite-difference derivatives), for display or as a fallback, not a solution of the QP
+    (``info.extras["returned"]`` says which). ``info.max_violation`` is the largest violation of
+    ``l ≤ Ax ≤ u`` by ``x`` (each row in its own unit: m, -, 1/m). ``x`` is the raw decision vector
+    ``[d, d′, d″]``.
     """
 
     info: SolveInfo
@@ -283,11 +238,6 @@ class LateralQPResult:
     dd: FloatArray
     ddd: FloatArray
     x: FloatArray
-
-    @property
-    def ok(self) -> bool:
-        """True when the solution can be used (status ``solved`` or ``solved_inaccurate``)."""
-        return self.info.ok
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -441,154 +391,6 @@ def _max_violation(Ax: FloatArray, lower: FloatArray, upper: FloatArray) -> floa
 
 
 # --------------------------------------------------------------------------------------------------------
-# Exact refinement when OSQP's polishing fails
-
-
-class _ActiveSetRefiner:
-    """A primal active-set method for ``min ½xᵀPx + qᵀx, l ≤ Ax ≤ u``, started from OSQP's iterate.
-
-    OSQP's polishing guesses the active set from the ADMM iterate once and gives up if the guess is wrong.
-    That happens when a bound is pressed over a stretch: the optimum touches it at a few knots and sags by
-    far less than the ADMM tolerance in between, so the iterate cannot tell which knots touch. This
-    method starts from the same guess, first makes the point feasible (adding violated rows), then drops
-    rows whose multiplier has the wrong sign and steps towards the minimiser of the equality-constrained
-    QP on the remaining rows, stopping at the first blocking row (which joins the set). Every iterate is
-    feasible and the cost never increases; it stops at a verified KKT point. Each step solves the
-    (regularised, iteratively refined) KKT system of the working set with SuperLU.
-    """
-
-    def __init__(self, P_upper: sp.csc_matrix, A: sp.csc_matrix) -> None:
-        P = (P_upper + sp.triu(P_upper, 1).T).tocsc()
-        self.nx, self.m = P.shape[0], A.shape[0]
-        self.P = P
-        self.A = A.tocsr()
-        self.K = sp.csc_matrix(sp.bmat([[P, A.T], [A, None]], format="csc"))
-        self.reg = np.concatenate([np.full(self.nx, _KKT_DELTA), np.full(self.m, -_KKT_DELTA)])
-
-    def _eqp(
-        self, q: FloatArray, lower: FloatArray, upper: FloatArray, side: NDArray[np.int8]
-    ) -> tuple[FloatArray, FloatArray] | None:
-        """Minimiser and multipliers of the QP with the rows of ``side ≠ 0`` held at their bound."""
-        rows = np.flatnonzero(side)
-        idx = np.concatenate([np.arange(self.nx), self.nx + rows])
-        K = sp.csc_matrix(self.K[idx][:, idx])
-        rhs = np.concatenate([-q, np.where(side[rows] < 0, lower[rows], upper[rows])])
-        try:
-            lu = spla.splu(sp.csc_matrix(K + sp.diags(self.reg[idx], format="csc")))
-        except RuntimeError:  # exactly singular even with the regularisation
-            return None
-        sol = lu.solve(rhs)
-        residual = rhs - K @ sol
-        for _ in range(_KKT_REFINE):  # until the residual stops shrinking
-            step = lu.solve(residual)
-            candidate = residual - K @ step
-            if not np.max(np.abs(candidate)) < 0.5 * np.max(np.abs(residual)):
-                break
-            sol, residual = sol + step, candidate
-        if not np.all(np.isfinite(sol)):
-            return None
-        y = np.zeros(self.m)
-        y[rows] = sol[self.nx :]
-        return sol[: self.nx], y
-
-    def refine(
-        self,
-        q: FloatArray,
-        lower: FloatArray,
-        upper: FloatArray,
-        x_admm: FloatArray,
-        y_admm: FloatArray,
-        *,
-        max_steps: int,
-        deadline: float,
-    ) -> tuple[FloatArray, FloatArray, bool, int] | None:
-        """``(x, y, optimal, steps)`` from OSQP's ``(x, y)``; ``None`` if no feasible point was found.
-
-        ``x`` is feasible (to ``_ROW_TOL`` per row, relative) in every case; ``optimal`` tells whether the
-        multipliers passed the sign test (a KKT point, hence the minimiser) within ``max_steps`` KKT solves
-        and before ``deadline`` (a ``time.perf_counter()`` value).
-        """
-        equal = lower == upper
-        z = np.clip(self.A @ x_admm, lower, upper)
-        guess = np.zeros(self.m, dtype=np.int8)  # −1 held at lower, +1 held at upper, 0 free
-        guess[(upper - z < y_admm)] = 1
-        guess[(z - lower < -y_admm) | equal] = -1  # OSQP's own guess
-        Ax_admm = self.A @ x_admm
-        minimal = np.zeros(self.m, dtype=np.int8)  # equalities and the rows the iterate violates
-        minimal[Ax_admm > upper] = 1
-        minimal[(Ax_admm < lower) | equal] = -1
-        steps = 0
-
-        # a feasible start: the minimiser on a working set, adding the rows it violates; OSQP's guess
-        # first, and if that set is inconsistent, the smallest set that could do
-        x: FloatArray | None = None
-        side = guess
-        for start_set in (guess, minimal):
-            side = start_set.copy()
-            for _ in range(_FEASIBILITY_ROUNDS):
-                if steps >= max_steps or time.perf_counter() >= deadline:
-                    return None
-                solved = self._eqp(q, lower, upper, side)
-                steps += 1
-                if solved is None:
-                    break
-                Ax = self.A @ solved[0]
-                tol = _ROW_TOL * (1.0 + np.abs(Ax))
-                below, above = (side == 0) & (Ax < lower - tol), (side == 0) & (Ax > upper + tol)
-                held = side != 0
-                off = held & (np.abs(Ax - np.where(side < 0, lower, upper)) > 10 * tol)  # inconsistent set
-                if off.any():
-                    break
-                if not (below.any() or above.any()):
-                    x = solved[0]
-                    break
-                side[below], side[above] = -1, 1
-            if x is not None:
-                break
-        if x is None:
-            return None
-
-        while steps < max_steps and time.perf_counter() < deadline:
-            solved = self._eqp(q, lower, upper, side)
-            steps += 1
-            if solved is None:
-                break
-            x_hat, y = solved
-            p = x_hat - x
-            if np.max(np.abs(p)) <= _STEP_TOL * (1.0 + np.max(np.abs(x))):
-                x = x_hat
-                y_tol = 1e-8 * (1.0 + np.max(np.abs(y)))
-                wrong = ~equal & (((side < 0) & (y > y_tol)) | ((side > 0) & (y < -y_tol)))
-                if not wrong.any():
-                    return x, y, True, steps
-                side[wrong] = 0
-                continue
-            Ax, Ap = self.A @ x, self.A @ p
-            free = side == 0
-            with np.errstate(divide="ignore", invalid="ignore"):
-                to_lower = np.where(free & (Ap < 0) & np.isfinite(lower), (lower - Ax) / Ap, np.inf)
-                to_upper = np.where(free & (Ap > 0) & np.isfinite(upper), (upper - Ax) / Ap, np.inf)
-            ratio = np.minimum(to_lower, to_upper)
-            j = int(np.argmin(ratio))
-            alpha = float(np.clip(ratio[j], 0.0, 1.0))
-            x = x + alpha * p
-            if alpha < 1.0:
-                side[j] = -1 if to_lower[j] <= to_upper[j] else 1
-        return x, np.zeros(self.m), False, steps
-
-
-#: KKT regularisation of the refinement (removed again by iterative refinement) and its refinement steps
-_KKT_DELTA = 1e-9
-_KKT_REFINE = 10
-#: relative tolerance of the refinement's row tests (a row within it of its bound is on it)
-_ROW_TOL = 1e-8
-#: a step shorter than this (relative) is no step: the working set is optimal for its equalities
-_STEP_TOL = 1e-8
-#: rounds of "add the violated rows" while looking for a feasible start
-_FEASIBILITY_ROUNDS = 8
-
-
-# --------------------------------------------------------------------------------------------------------
 # Solver
 
 
@@ -603,31 +405,18 @@ _STATUS_MAP: dict[int, SolverStatus] = {
     # non-convex, interrupted, unsolved: all "failed"
 }
 
-#: tolerance factor of the one OSQP re-run when the refinement finds no feasible start
-_RETRY_TIGHTEN = 1e-2
-
-#: statuses whose iterate is worth refining
-_REFINABLE = (
-    SolverStatus.SOLVED,
-    SolverStatus.SOLVED_INACCURATE,
-    SolverStatus.MAX_ITERATIONS,
-    SolverStatus.TIME_LIMIT,
-)
-
 #: an iterate this far beyond the problem's scale is taken as divergence, not as a path
 _DIVERGED = 1e6
 
 
 @dataclass
 class _Workspace:
-    """One OSQP set-up (fixed ``P``, ``A``), its refiner (built when first needed), the last solution."""
+    """One OSQP set-up (fixed ``P``, ``A``) and the last solution (for the next warm start)."""
 
     solver: Any
-    P: sp.csc_matrix
     A: sp.csc_matrix
     max_iter: int
     time_limit_s: float
-    refiner: _ActiveSetRefiner | None = None
     last_x: FloatArray | None = None
     last_y: FloatArray | None = None
 
@@ -635,32 +424,28 @@ class _Workspace:
 class LateralQPSolver:
     """Solves :class:`LateralQPProblem` s with OSQP, reusing the set-up per ``(n, Δs, weights, end_d given)``.
 
-    The first solve for a key builds ``P`` and ``A`` and sets OSQP up (factorisation included); later
-    solves with the same key only update ``q, l, u`` and warm-start from the previous solution (or, after
-    a failure, from the clipped reference with zero duals). Up to ``max_cached`` set-ups are kept, least
-    recently used dropped first. Not thread-safe: use one solver per thread (see :func:`solve_lateral_qp`).
+    The first solve for a key builds ``P`` and ``A`` and sets OSQP up (factorisation included, reported as
+    ``info.setup_time_ms``); later solves with the same key only update ``q, l, u`` and warm-start from the
+    previous solution (or, after a failure, from the clipped reference with zero duals). Up to
+    ``max_cached`` set-ups are kept, least recently used dropped first. Not thread-safe: use one solver per
+    thread.
 
     Accuracy. OSQP's ADMM stops at ``eps_abs``/``eps_rel`` and polishing then solves the equality system
-    of the guessed active set: when it succeeds (the common case) the solution is exact to about 1e-9.
-    When a bound is pressed over a stretch, the optimum touches it at a few knots and sags by less than
-    the ADMM tolerance in between; the guess is then wrong and polishing fails. The solver then runs an
-    active-set refinement from OSQP's iterate (:class:`_ActiveSetRefiner`, at most ``refine_steps`` sparse
-    KKT solves): it ends at a verified KKT point (status ``solved``, message says ``refined``) or, out of
-    steps, at a feasible point no worse than its start (``solved_inaccurate``). Refinement also rescues
-    an iterate that ran out of iterations or time. Every returned solution is checked against the
-    constraints: ``solved`` guarantees that each holds to ``feasibility_tol`` (in the row's own unit).
+    of the guessed active set: when it succeeds (the common case) the solution is exact to about 1e-9 and
+    the status ``solved``. Every returned solution is checked against the constraints: ``solved``
+    guarantees that each holds to ``feasibility_tol`` (in the row's own unit); a converged solution that
+    breaks one by more (polishing failed, the ADMM iterate is accurate to about ``eps``) is
+    ``solved_inaccurate``, its largest violation ``info.max_violation``.
 
-    Speed. Unpressed problems: ~1 ms at ``n = 200`` (25 ADMM iterations + polishing). Pressed bounds:
-    OSQP ~2 ms warm / ~10 ms cold, then 10–50 KKT solves of ~1–2 ms each. To bound the latency pass
-    ``time_limit_s`` (the refinement stops at it and returns its current feasible point as
-    ``solved_inaccurate``) or set ``refine_steps=0`` (ADMM accuracy, ≲ 1 mm; such a solve reports
-    ``solved_inaccurate`` with the largest violation in its message).
+    A result's ``info.extras`` holds ``backend_status`` (OSQP's status text), ``polished`` (whether OSQP's
+    polishing succeeded) and ``returned``: ``"solution"``, ``"integrated_iterate"`` (out of iterations or
+    time: the last iterate's ``d″`` integrated from the initial state, consistent but not a solution) or
+    ``"clipped_reference"`` (infeasible or failed: the reference clipped to the bounds).
 
     Args:
         eps_abs, eps_rel: OSQP's absolute and relative tolerances.
-        polish: run OSQP's solution polishing (and the refinement where it fails).
+        polish: run OSQP's solution polishing.
         feasibility_tol: largest constraint violation accepted as ``solved``.
-        refine_steps: KKT solves the refinement may take (each ~1–2 ms at n = 200); 0 disables it.
         max_cached: number of set-ups kept.
     """
 
@@ -671,16 +456,11 @@ class LateralQPSolver:
         eps_rel: float = 1e-3,
         polish: bool = True,
         feasibility_tol: float = 1e-6,
-        refine_steps: int = 60,
         max_cached: int = 4,
     ) -> None:
         if not (eps_abs > 0 and eps_rel >= 0 and feasibility_tol > 0):
             raise ValueError("eps_abs and feasibility_tol must be > 0 and eps_rel ≥ 0")
-        if max_cached < 1 or refine_steps < 0:
-            raise ValueError("max_cached must be ≥ 1 and refine_steps ≥ 0")
         self._feasibility_tol = float(feasibility_tol)
-        self._eps_abs, self._eps_rel = float(eps_abs), float(eps_rel)
-        self._refine_steps = int(refine_steps) if polish else 0
         self._settings: dict[str, Any] = {
             "eps_abs": float(eps_abs),
             "eps_rel": float(eps_rel),
@@ -688,7 +468,7 @@ class LateralQPSolver:
             "verbose": False,
             "warm_starting": True,
         }
-        self._max_cached = int(max_cached)
+        self._max_cached = integer("max_cached", max_cached, low=1)
         self._workspaces: OrderedDict[_MatrixKey, _Workspace] = OrderedDict()
         self._setup_count = 0
 
@@ -699,22 +479,24 @@ class LateralQPSolver:
 
     def _workspace(
         self, problem: LateralQPProblem, q: FloatArray, lower: FloatArray, upper: FloatArray
-    ) -> _Workspace:
+    ) -> tuple[_Workspace, float]:
+        """The set-up for ``problem``'s key with ``q, l, u`` in it, and the time a new set-up took [ms]."""
         key: _MatrixKey = (problem.n, problem.ds, problem.weights, problem.end_d is not None)
         workspace = self._workspaces.get(key)
         if workspace is not None:
             self._workspaces.move_to_end(key)
             workspace.solver.update(q=q, l=lower, u=upper)
-            return workspace
+            return workspace, 0.0
+        start = time.perf_counter()
         P, A = _matrices(*key)
         solver = osqp.OSQP()
         solver.setup(P, q, A, lower, upper, max_iter=4000, time_limit=_NO_TIME_LIMIT_S, **self._settings)
         self._setup_count += 1
-        workspace = _Workspace(solver=solver, P=P, A=A, max_iter=4000, time_limit_s=_NO_TIME_LIMIT_S)
+        workspace = _Workspace(solver=solver, A=A, max_iter=4000, time_limit_s=_NO_TIME_LIMIT_S)
         self._workspaces[key] = workspace
         while len(self._workspaces) > self._max_cached:
             self._workspaces.popitem(last=False)
-        return workspace
+        return workspace, (time.perf_counter() - start) * 1e3
 
     def solve(
         self,
@@ -728,8 +510,7 @@ class LateralQPSolver:
 
         Args:
             problem: the QP data (validated on construction).
-            time_limit_s: limit on the whole solve [s] (OSQP's run-time limit, and the refinement stops
-                at it too); ``None``: none.
+            time_limit_s: OSQP's run-time limit [s]; ``None``: none.
             max_iter: OSQP's iteration limit (≥ 1).
             warm_start: start from the previous solution of the same set-up. It pays when the knots sit
                 at the same ``s`` as last time (a re-solve of a slightly changed problem); when the grid
@@ -741,8 +522,7 @@ class LateralQPSolver:
         start = time.perf_counter()
         if not isinstance(problem, LateralQPProblem):
             raise ValueError(f"problem: expected LateralQPProblem, got {type(problem).__name__}")
-        if isinstance(max_iter, bool) or not isinstance(max_iter, int | np.integer) or max_iter < 1:
-            raise ValueError(f"max_iter: must be an integer ≥ 1, got {max_iter!r}")
+        max_iter = integer("max_iter", max_iter, low=1)
         if time_limit_s is None:
             limit = _NO_TIME_LIMIT_S
         else:
@@ -752,121 +532,65 @@ class LateralQPSolver:
 
         n = problem.n
         q, l, u = _vectors(problem)  # noqa: E741
-        workspace = self._workspace(problem, q, l, u)
+        workspace, setup_ms = self._workspace(problem, q, l, u)
         solver = workspace.solver
         if workspace.max_iter != max_iter or workspace.time_limit_s != limit:
-            solver.update_settings(max_iter=int(max_iter), time_limit=limit)
-            workspace.max_iter, workspace.time_limit_s = int(max_iter), limit
+            solver.update_settings(max_iter=max_iter, time_limit=limit)
+            workspace.max_iter, workspace.time_limit_s = max_iter, limit
         if warm_start and workspace.last_x is not None and workspace.last_y is not None:
             solver.warm_start(x=workspace.last_x, y=workspace.last_y)
         else:
             solver.warm_start(x=_fallback_path(problem), y=np.zeros(l.shape[0]))
 
+        results = solver.solve(raise_error=False)
+        info = results.info
+        status = _STATUS_MAP.get(int(info.status_val), SolverStatus.FAILED)
+        message = f"osqp: {info.status}"
+        x = np.asarray(results.x, dtype=np.float64)
+        y = np.asarray(results.y, dtype=np.float64)
         finite = np.concatenate([l[np.isfinite(l)], u[np.isfinite(u)], q])
         scale = 1.0 + float(np.max(np.abs(finite)))
-        iterations = 0
-        message = ""
-        # OSQP at the configured accuracy; if the refinement finds no feasible start from its iterate (a
-        # rare, nearly degenerate case: e.g. the jerk bound active almost everywhere), once more from
-        # there with 100× tighter tolerances, whose iterate the refinement can work from
-        for tighten in (1.0, _RETRY_TIGHTEN):
-            if tighten != 1.0:
-                solver.update_settings(eps_abs=self._eps_abs * tighten, eps_rel=self._eps_rel * tighten)
-            results = solver.solve(raise_error=False)
-            if tighten != 1.0:
-                solver.update_settings(eps_abs=self._eps_abs, eps_rel=self._eps_rel)
-                message += "; re-ran OSQP with tighter tolerances: "
-            info = results.info
-            iterations += int(info.iter)
-            status = _STATUS_MAP.get(int(info.status_val), SolverStatus.FAILED)
-            message += f"osqp: {info.status}"
-            x = np.asarray(results.x, dtype=np.float64)
-            y = np.asarray(results.y, dtype=np.float64)
-            usable = (
-                x.shape == (3 * n,)
-                and bool(np.isfinite(x).all() and np.isfinite(y).all())
-                and float(np.max(np.abs(x))) < _DIVERGED * scale
-            )
-            polished = int(info.status_polish) == 1
-            exact = (
-                status.ok
-                and polished
-                and usable
-                and _max_violation(workspace.A @ x, l, u) <= self._feasibility_tol
-            )
-            if exact:
-                message += ", polished"
-                break
-            if not (usable and status in _REFINABLE and self._refine_steps > 0):
-                break
-            if polished:
-                message += ", polished but not to the feasibility tolerance"
-            if workspace.refiner is None:
-                workspace.refiner = _ActiveSetRefiner(workspace.P, workspace.A)
-            refined = workspace.refiner.refine(
-                q, l, u, x, y, max_steps=self._refine_steps, deadline=start + limit
-            )
-            if refined is not None:
-                x, y_refined, optimal, steps = refined
-                if optimal:
-                    status, y = SolverStatus.SOLVED, y_refined
-                    message += f"; refined to the exact optimum by an active-set method ({steps} KKT solves)"
-                else:
-                    status = SolverStatus.SOLVED_INACCURATE
-                    message += f"; active-set refinement stopped after {steps} KKT solves at a feasible point"
-                break
-            message += "; refinement found no feasible point"
-            if time.perf_counter() >= start + limit:
-                break
-
-        if status.ok and usable:
+        finite_iterate = (
+            x.shape == (3 * n,)
+            and bool(np.isfinite(x).all() and np.isfinite(y).all())
+            and float(np.max(np.abs(x))) < _DIVERGED * scale
+        )
+        polished = int(info.status_polish) == 1
+        returned = "solution"
+        if status.converged and finite_iterate:
             violation = _max_violation(workspace.A @ x, l, u)
-            if violation > self._feasibility_tol:
+            if polished and violation <= self._feasibility_tol:
+                message += ", polished"
+            elif violation > self._feasibility_tol:
                 status = SolverStatus.SOLVED_INACCURATE
                 message += f"; constraints violated by up to {violation:.1e}"
             workspace.last_x, workspace.last_y = x.copy(), y.copy()
         else:
             workspace.last_x = workspace.last_y = None
-            if status.ok:  # "solved" with a non-finite or diverged iterate: never hand that out
+            if status.converged:  # "solved" with a non-finite or diverged iterate: never hand that out
                 status = SolverStatus.FAILED
                 message += ", diverged"
-            if usable and status in (SolverStatus.MAX_ITERATIONS, SolverStatus.TIME_LIMIT):
+            if finite_iterate and status in (SolverStatus.MAX_ITERATIONS, SolverStatus.TIME_LIMIT):
                 x = integrate_profile(problem, np.clip(x[2 * n :], l[2 * n : 3 * n], u[2 * n : 3 * n]))
+                returned = "integrated_iterate"
                 message += (
                     "; returned the last iterate's d″ integrated from the initial state "
                     "(consistent, not a solution: the d bounds may be broken)"
                 )
             else:
                 x = _fallback_path(problem)
+                returned = "clipped_reference"
                 message += "; returned the reference clipped to the bounds (not a solution)"
 
         d, dd, ddd = x[:n].copy(), x[n : 2 * n].copy(), x[2 * n :].copy()
-        cost = objective(problem, d, dd, ddd) if status.ok else None
         solve_info = SolveInfo(
             status=status,
-            iterations=iterations,
-            solve_time_ms=(time.perf_counter() - start) * 1e3,
-            objective=cost,
+            iterations=int(info.iter),
+            solve_time_ms=(time.perf_counter() - start) * 1e3 - setup_ms,
+            objective=objective(problem, d, dd, ddd) if status.converged else None,
             message=message,
+            max_violation=_max_violation(workspace.A @ x, l, u),
+            setup_time_ms=setup_ms,
+            extras={"backend_status": str(info.status), "polished": polished, "returned": returned},
         )
         return LateralQPResult(info=solve_info, d=d, dd=dd, ddd=ddd, x=x)
-
-
-_thread_local = threading.local()
-
-
-def solve_lateral_qp(
-    problem: LateralQPProblem,
-    *,
-    time_limit_s: float | None = None,
-    max_iter: int = 4000,
-    warm_start: bool = True,
-) -> LateralQPResult:
-    """Solve ``problem`` with a :class:`LateralQPSolver` kept per thread (so set-ups are reused)."""
-    solver = getattr(_thread_local, "solver", None)
-    if solver is None:
-        solver = _thread_local.solver = LateralQPSolver()
-    result: LateralQPResult = solver.solve(
-        problem, time_limit_s=time_limit_s, max_iter=max_iter, warm_start=warm_start
-    )
-    return result

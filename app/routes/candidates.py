@@ -2,21 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from fastapi import APIRouter
 
-import numpy as np
-from fastapi import APIRouter, Body
-
+from app.conversions import candidates_response, to_problem
 from app.errors import ERROR_RESPONSES
-from app.schemas import (
-    CandidatesDiagnostics,
-    CandidatesResponse,
-    PlanningRequest,
-    candidate_data,
-    demo_request,
-    to_problem,
-)
-from planner.candidates import ego_frenet, generate_candidates
+from app.models.candidates import CandidatesResponse
+from app.routes.examples import PlanningBody
+from planner.candidates import generate_candidates
+from planner.ego import ego_frenet
 from planner.reference import build_reference
 
 router = APIRouter(prefix="/v1", tags=["candidates"], responses=ERROR_RESPONSES)
@@ -28,17 +21,7 @@ router = APIRouter(prefix="/v1", tags=["candidates"], responses=ERROR_RESPONSES)
     summary="Candidate paths of a planning request",
 )
 def candidates(
-    body: Annotated[
-        PlanningRequest,
-        Body(
-            openapi_examples={
-                "demo": {
-                    "summary": "The demo U-turn (GET /v1/demo)",
-                    "value": demo_request().model_dump(mode="json"),
-                }
-            }
-        ),
-    ],
+    body: PlanningBody,
 ) -> CandidatesResponse:
     """`options.num_candidates` lateral paths from the ego (the points each keeps) + diagnostics."""
     problem = to_problem(body)
@@ -47,16 +30,4 @@ def candidates(
     cs = generate_candidates(
         ref, problem.lane, problem.ego, problem.vehicle, problem.options, start=start
     )
-    diagnostics = CandidatesDiagnostics(
-        generated=cs.count,
-        repaired=int(np.count_nonzero(cs.repaired)),
-        generator=cs.generator,
-        reference_samples=ref.size,
-        reference_spacing=ref.spacing,
-        reference_length=ref.length,
-        reference_max_curvature=float(np.max(np.abs(ref.kappa))),
-        ego_s=start.s,
-        ego_d=start.d,
-        kept_points=int(np.count_nonzero(cs.valid)),
-    )
-    return CandidatesResponse(candidates=candidate_data(cs), diagnostics=diagnostics)
+    return candidates_response(cs, ref, start)

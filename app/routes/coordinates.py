@@ -2,28 +2,18 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
 import numpy as np
 from fastapi import APIRouter, Body
 
 from app.errors import ERROR_RESPONSES
-from app.schemas import (
-    CartesianRequest,
-    CartesianResponse,
-    FrenetRequest,
-    FrenetResponse,
-    demo_request,
-)
+from app.models.coordinates import CartesianRequest, CartesianResponse, FrenetRequest, FrenetResponse
+from app.routes.examples import on_the_demo_road
 from planner.frenet import to_cartesian, to_frenet
 from planner.reference import build_reference
 
 router = APIRouter(prefix="/v1", tags=["coordinates"], responses=ERROR_RESPONSES)
-
-
-def _examples(key: str, values: list[list[float]], summary: str) -> dict[str, Any]:
-    road = [list(p) for p in demo_request().reference_line]
-    return {"demo": {"summary": summary, "value": {"reference_line": road, key: values}}}
 
 
 @router.post(
@@ -35,7 +25,7 @@ def frenet(
     body: Annotated[
         FrenetRequest,
         Body(
-            openapi_examples=_examples(
+            openapi_examples=on_the_demo_road(
                 "points", [[-30.0, 0.0], [0.0, 5.0], [4.0, 8.0]], "Points on the demo U-turn"
             )
         ),
@@ -56,7 +46,7 @@ def cartesian(
     body: Annotated[
         CartesianRequest,
         Body(
-            openapi_examples=_examples(
+            openapi_examples=on_the_demo_road(
                 "frenet", [[10.0, 0.0], [50.0, 2.0], [60.0, -1.5]], "Offsets on the demo U-turn"
             )
         ),

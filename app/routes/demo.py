@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from app.schemas import PlanningRequest, demo_request
+from app.conversions import demo_request
+from app.models.planning import PlanningRequest
 
 router = APIRouter(tags=["demo"])
 

@@ -2,18 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Literal
-
 from fastapi import APIRouter
-from pydantic import BaseModel
+
+from app.models.health import Health
 
 router = APIRouter(tags=["health"])
-
-
-class Health(BaseModel):
-    """The service is up."""
-
-    status: Literal["ok"] = "ok"
 
 
 @router.get("/healthz", operation_id="healthz", summary="Liveness probe")

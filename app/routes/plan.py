@@ -1,29 +1,32 @@
 """A planned trajectory for a planning request: the whole pipeline of :func:`planner.pipeline.plan`.
 
-The plan runs in the worker's plan pool (:class:`app.executor.PlanExecutor`, ``app.state.plan_executor``)
-so that the event loop stays free: :func:`compute_plan` does all the CPU work there — the problem, the
-plan, and the answer's JSON — and sends back the bytes with the plan's status and stage timings (for the
-metrics and the request's log line).
+The plan runs in the worker's plan pool (:class:`app.executor.PlanExecutor`, a
+:data:`app.deps.PlanExecutorDep`) so that the event loop stays free: :func:`compute_plan` does all the
+CPU work there — the problem, the plan, and the answer's JSON — and sends back the bytes with the plan's
+status and stage timings (for the metrics and the request's log line).
 
-The answer is written straight from the planner's arrays (:func:`app.schemas.plan_data`, finiteness
-checked on the arrays) rather than through pydantic objects: with the demo's candidates that is 2×
-faster than validating the data once and 4× faster than one object per point, 5× at the size limit.
-:class:`app.schemas.PlanResponse` documents the answer; the tests check that every answer is exactly
-its JSON.
+The answer is written straight from the planner's arrays (:func:`app.conversions.plan_data`, finiteness
+checked on the arrays) rather than through pydantic objects, which would cost a validation or an object
+per point; :class:`app.models.plan.PlanResponse` documents the answer, and the tests check that every
+answer is exactly its JSON.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated
 
 import pydantic_core
-from fastapi import APIRouter, Body, Request, Response
+from fastapi import APIRouter, Request, Response
 
 from app import metrics
-from app.errors import ERROR_RESPONSES, ErrorResponse, error_response
-from app.executor import Overloaded, PlanExecutor
-from app.schemas import PlanningRequest, PlanResponse, demo_request, plan_data, to_problem
+from app.conversions import demo_request, plan_data, to_problem
+from app.deps import PlanExecutorDep, SettingsDep
+from app.errors import ERROR_RESPONSES, error_response
+from app.executor import Overloaded
+from app.models.errors import ErrorResponse
+from app.models.plan import PlanResponse
+from app.models.planning import PlanningRequest
+from app.routes.examples import PlanningBody
 from planner.pipeline import plan
 
 router = APIRouter(prefix="/v1", tags=["planning"], responses=ERROR_RESPONSES)
@@ -70,23 +73,13 @@ def warm_up() -> None:
 )
 async def plan_trajectory(
     request: Request,
-    body: Annotated[
-        PlanningRequest,
-        Body(
-            openapi_examples={
-                "demo": {
-                    "summary": "The demo U-turn (GET /v1/demo)",
-                    "value": demo_request().model_dump(mode="json"),
-                }
-            }
-        ),
-    ],
+    body: PlanningBody,
+    settings: SettingsDep,
+    executor: PlanExecutorDep,
 ) -> Response:
     """Trajectory from the ego every `options.dt` [s]; a planning failure is a 200 with status `fallback`."""
-    executor: PlanExecutor = request.app.state.plan_executor
     try:
-        budget = request.app.state.settings.time_budget_ms
-        outcome = await executor.run(compute_plan, (body, budget))
+        outcome = await executor.run(compute_plan, (body, settings.time_budget_ms))
     except Overloaded as exc:
         response = error_response(503, "overloaded", f"The service is busy: {exc}; retry later.")
         response.headers["Retry-After"] = str(RETRY_AFTER_S)

@@ -15,8 +15,8 @@ if str(ROOT) not in sys.path:  # `pytest tests/app` without PYTHONPATH=.
 
 from fastapi.testclient import TestClient  # noqa: E402
 
+from app.conversions import demo_request  # noqa: E402
 from app.main import create_app  # noqa: E402
-from app.schemas import demo_request  # noqa: E402
 
 
 @pytest.fixture(scope="session")

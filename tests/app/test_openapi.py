@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 from pathlib import Path
 from typing import Any
 
@@ -10,7 +10,6 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app.main import app
-from app.settings import Settings
 
 EXPORT = Path(__file__).resolve().parents[2] / "openapi" / "export.py"
 
@@ -87,12 +86,3 @@ def test_every_request_example_is_accepted(client: TestClient) -> None:
         for name, example in body["content"]["application/json"]["examples"].items():
             r = client.post(path, json=example["value"])
             assert r.status_code == 200, (path, name, r.text[:300])
-
-
-def test_settings_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("KAPPA_PORT", "9001")
-    monkeypatch.setenv("KAPPA_LOG_LEVEL", "DEBUG")
-    monkeypatch.setenv("KAPPA_MAX_BODY_BYTES", "4096")
-    settings = Settings()
-    assert (settings.port, settings.log_level, settings.max_body_bytes) == (9001, "debug", 4096)
-    assert (settings.host, settings.workers) == ("127.0.0.1", 1)

@@ -20,7 +20,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pydantic import ValidationError
 
-from app import schemas
+from app import conversions, limits
+from app.models import planning as api
 from planner.bounds import BEYOND_LANE, lateral_bounds
 from planner.candidates import MAX_PATH_LENGTH, CandidateSet, generate_candidates, path_length
 from planner.collision import frenet_boxes, obstacle_shape
@@ -565,7 +566,7 @@ def _api_bounds() -> list[Any]:
     """One case per bound of a numeric field of the API's ego, vehicle and options (and the lane
     widths): ``(section, field, value)``, the value at the bound (just inside it for ``gt``)."""
     cases = []
-    for section, model in (("ego", schemas.Ego), ("vehicle", schemas.Vehicle), ("options", schemas.Options)):
+    for section, model in (("ego", api.Ego), ("vehicle", api.Vehicle), ("options", api.Options)):
         for name, info in model.model_fields.items():
             for meta in info.metadata:
                 if isinstance(meta, annotated_types.Gt):
@@ -575,7 +576,7 @@ def _api_bounds() -> list[Any]:
                 else:
                     continue
                 cases.append(pytest.param(section, name, value, id=f"{section}.{name}={value}"))
-    for value in (0.0, schemas.MAX_WIDTH):
+    for value in (0.0, limits.MAX_LANE_WIDTH):
         cases.append(pytest.param("lane", "left_width", value, id=f"lane.left_width={value}"))
         cases.append(
             pytest.param("lane", "right_width", [value] * _DEMO_POINTS, id=f"lane.right_width=[{value}]")
@@ -585,13 +586,13 @@ def _api_bounds() -> list[Any]:
 
 @pytest.mark.parametrize(("section", "name", "value"), _api_bounds())
 def test_every_bound_the_api_accepts_the_library_accepts(section: str, name: str, value: Any) -> None:
-    body = schemas.from_problem(demo_problem()).model_dump()
+    body = conversions.from_problem(demo_problem()).model_dump()
     body[section][name] = value
     if body["options"]["dt"] > body["options"]["horizon_time"]:  # refused as a whole by the API
         with pytest.raises(ValidationError, match=r"options\.dt"):
-            schemas.PlanningRequest.model_validate(body)
+            api.PlanningRequest.model_validate(body)
         return
-    problem = schemas.to_problem(schemas.PlanningRequest.model_validate(body))
+    problem = conversions.to_problem(api.PlanningRequest.model_validate(body))
     if section == "ego" and name in ("x", "y", "heading"):
         return  # the road judges a position or a heading: 10⁷ m off it is refused by the planner
     _planned(problem)

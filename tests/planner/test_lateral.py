@@ -28,11 +28,11 @@ from scenario_roads import Road, arc_piece, straight_piece
 
 from planner.config import DEFAULT_CONFIG, LateralConfig
 from planner.ego import EgoFrenet
-from planner.io import problem_from_json
 from planner.lateral import curvature_allowance, knots
 from planner.pipeline import plan
 from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
-from planner.sim import shift_obstacle
+from planner_tools.io import problem_from_json
+from planner_tools.sim import shift_obstacle
 from solvers.result import SolverStatus
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "commonroad"

@@ -46,7 +46,7 @@ def test_free_road_reaches_the_target_speed() -> None:
     assert result.status == "ok"
     assert result.trajectory.v[-1] == pytest.approx(10.0, abs=0.2)
     assert np.max(np.abs(result.trajectory.d)) < 0.2
-    assert result.diagnostics.lateral_qp.ok and result.diagnostics.speed.ok
+    assert result.diagnostics.lateral_qp.converged and result.diagnostics.speed.usable
 
 
 def test_blocked_road_stops_before_the_block() -> None:

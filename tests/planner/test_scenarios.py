@@ -28,7 +28,8 @@ import numpy as np
 import pytest
 import shapely
 
-from app.schemas import PlanningRequest, to_problem
+from app.conversions import to_problem
+from app.models.planning import PlanningRequest
 from planner.collision import obstacle_shape
 from planner.frenet import to_frenet
 from planner.pipeline import plan

@@ -1,7 +1,7 @@
 """Property checks of a ``POST /v1/plan`` answer, from the request's and the answer's JSON alone.
 
 Nothing here looks inside the server: the request is read as any client would send it (through
-``app.schemas.to_problem`` to get the planner's view of it, defaults filled in) and the answer is taken
+``app.conversions.to_problem`` to get the planner's view of it, defaults filled in) and the answer is taken
 from its JSON, so the same checks hold against an in-process app or any running server.
 
 What is checked is properties, not numbers:
@@ -31,7 +31,9 @@ import numpy as np
 import shapely
 from pydantic import ValidationError
 
-from app.schemas import PlanningRequest, PlanResponse, to_problem
+from app.conversions import to_problem
+from app.models.plan import PlanResponse
+from app.models.planning import PlanningRequest
 from planner.collision import box_corners
 from planner.frenet import to_frenet
 from planner.problem import CircleObstacle, PlanningProblem, PolygonObstacle

@@ -4,7 +4,7 @@ Each golden request ``NAME.json`` is a body for ``POST /v1/plan``; its sidecar `
 which answers are acceptable (``statuses``), what the request is about and, where a fallback is
 tolerated for now, the known issue behind it. The requests are
 
-* the demo road (``app.schemas.demo_request``, what ``GET /v1/demo`` serves) and a coarser variant of it;
+* the demo road (``app.conversions.demo_request``, what ``GET /v1/demo`` serves) and a coarser variant of it;
 * synthetic scenarios built on exactly known roads (``planner.roads``, ``tests/planner/scenario_roads.py``),
   the same situations as ``tests/planner/test_scenarios.py``;
 * copies of some recorded CommonRoad requests from ``tests/data/commonroad/``.
@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:  # run as a script
     sys.path.insert(0, str(ROOT))
 
-from app.schemas import demo_request, from_problem  # noqa: E402
+from app.conversions import demo_request, from_problem  # noqa: E402
 from planner.problem import (  # noqa: E402
     CircleObstacle,
     DynamicObstacle,

@@ -1,5 +1,6 @@
-"""Lateral piecewise-jerk QP: constraints hold, references are tracked, bounds push the path,
-infeasibility is a status, misuse is a ValueError, set-ups are reused, and another QP backend agrees."""
+"""Lateral piecewise-jerk QP: constraints hold (exactly where OSQP's polishing succeeds, to the ADMM
+tolerance and reported where it fails), references are tracked, bounds push the path, infeasibility is a
+status, misuse is a ValueError, set-ups are reused, and another QP backend agrees."""
 
 from __future__ import annotations
 
@@ -20,11 +21,12 @@ from solvers.lateral_qp import (
     LateralWeights,
     build_qp_matrices,
     objective,
-    solve_lateral_qp,
 )
-from solvers.result import SolveInfo, SolverStatus
+from solvers.result import SolverStatus
 
 TOL = 1e-4
+#: OSQP's default tolerances, as the solver's (``eps_abs``, ``eps_rel``)
+EPS = 1e-3
 
 
 def _smoothstep(t: np.ndarray) -> np.ndarray:
@@ -75,22 +77,39 @@ def _assert_feasible(problem: LateralQPProblem, result: LateralQPResult, tol: fl
     assert not bad, f"constraints violated: {bad} ({result.info})"
 
 
-# --------------------------------------------------------------------------------------------------------
-# Result type
+def _assert_reported(problem: LateralQPProblem, result: LateralQPResult) -> None:
+    """``info.max_violation`` is the largest violation of any constraint, measured here independently."""
+    assert max(_violations(problem, result).values()) == pytest.approx(result.info.max_violation, abs=1e-12)
 
 
-def test_status_values_and_ok() -> None:
-    assert [s.value for s in SolverStatus] == [
-        "solved", "solved_inaccurate", "infeasible", "max_iterations", "time_limit", "failed",
-    ]  # fmt: skip
-    assert SolverStatus("infeasible") is SolverStatus.INFEASIBLE
-    for status in SolverStatus:
-        info = SolveInfo(status=status, iterations=3, solve_time_ms=0.1, objective=None, message="")
-        assert info.ok == (status in (SolverStatus.SOLVED, SolverStatus.SOLVED_INACCURATE))
+def _admm_tol(result: LateralQPResult) -> float:
+    """How far an ADMM iterate may miss a constraint: OSQP's primal residual test, ``‖Ax − z‖∞ ≤ eps_abs +
+    eps_rel·max(‖Ax‖∞, ‖z‖∞)``, with ``‖Ax‖∞ = ‖x‖∞`` here (the box rows; the others are near 0), and
+    ten times that when OSQP reports ``solved inaccurate`` (its documented looser test)."""
+    loose = 10.0 if result.info.extras["backend_status"] == "solved inaccurate" else 1.0
+    return loose * EPS * (1.0 + float(np.max(np.abs(result.x))))
+
+
+def _assert_solved_or_reported(problem: LateralQPProblem, result: LateralQPResult, polished: bool) -> None:
+    """Polished: ``solved``, every constraint to ``TOL``. Not: the ADMM iterate, ``solved_inaccurate``
+    with its violation (below the ADMM tolerance) reported truthfully."""
+    assert result.info.extras["polished"] is polished and result.info.extras["returned"] == "solution"
+    _assert_reported(problem, result)
+    if polished:
+        assert result.info.status is SolverStatus.SOLVED, result.info
+        _assert_feasible(problem, result)
+    else:
+        assert result.info.status is SolverStatus.SOLVED_INACCURATE, result.info
+        assert 1e-6 < result.info.max_violation <= _admm_tol(result)
 
 
 # --------------------------------------------------------------------------------------------------------
 # Solutions
+
+
+#: the active-bound cases where OSQP's polishing finds the active set (elsewhere a bound is pressed over a
+#: stretch: the optimum touches it at a few knots only, and the ADMM iterate cannot tell which)
+_POLISHED = {"offset": True, "slope": False, "curvature": True, "jerk": True, "all": False}
 
 
 def _active_cases() -> dict[str, tuple[LateralQPProblem, str]]:
@@ -151,11 +170,10 @@ def test_solution_satisfies_all_constraints_with_active_bounds(case: str) -> Non
     problem, group = _active_cases()[case]
     solver = LateralQPSolver()
     result = solver.solve(problem)
-    assert result.info.status is SolverStatus.SOLVED, result.info
-    assert result.ok and result.info.objective is not None
-    _assert_feasible(problem, result)
+    _assert_solved_or_reported(problem, result, _POLISHED[case])
+    assert result.info.converged and result.info.objective is not None
     # the bound really is active, so the test checks something
-    assert abs(_slack(problem, result, group)) <= 1e-6
+    assert abs(_slack(problem, result, group)) <= (1e-6 if _POLISHED[case] else _admm_tol(result))
     assert np.all(np.isfinite(result.x)) and result.x.shape == (3 * problem.n,)
 
 
@@ -180,8 +198,8 @@ def test_default_offset_weight_shrinks_towards_the_reference_line() -> None:
     """Documented behaviour: on a long constant stretch d → d_ref·w_ref/(w_ref + w_offset)."""
     n = 200
     problem = _lane_change(n=n, d_ref=np.full(n, 1.0), d0=1.0)
-    result = solve_lateral_qp(problem)
-    assert result.ok
+    result = LateralQPSolver().solve(problem)
+    assert result.info.converged
     middle = result.d[n // 4 : 3 * n // 4]
     np.testing.assert_allclose(middle, 1.0 / 1.1, atol=1e-3)
 
@@ -199,9 +217,8 @@ def test_step_in_lower_bound_is_respected_smoothly() -> None:
         jerk_max=0.1,
     )
     result = LateralQPSolver().solve(problem)
-    assert result.info.status is SolverStatus.SOLVED
-    _assert_feasible(problem, result)
-    assert np.min(result.d[blocked]) >= 1.0 - TOL
+    _assert_solved_or_reported(problem, result, polished=False)  # pressed over the whole stretch
+    assert np.min(result.d[blocked]) >= 1.0 - result.info.max_violation
     # smooth: jerk within its bound (checked above), bounded curvature, and it rises *before* the step
     assert np.max(np.abs(result.ddd)) < 0.1
     assert result.d[np.searchsorted(s, 35.0)] > 0.3
@@ -252,8 +269,9 @@ def test_unreachable_corridor_is_infeasible_not_an_exception() -> None:
     problem = _unreachable()
     result = solver.solve(problem)
     assert result.info.status is SolverStatus.INFEASIBLE
-    assert not result.ok and result.info.objective is None
-    assert "not a solution" in result.info.message
+    assert not result.info.usable and result.info.objective is None
+    assert result.info.extras["returned"] == "clipped_reference"
+    _assert_reported(problem, result)
     for arr in (result.d, result.dd, result.ddd, result.x):
         assert np.all(np.isfinite(arr))
     # the fallback is the reference clipped to the bounds, starting at the ego
@@ -269,32 +287,24 @@ def test_unreachable_corridor_is_infeasible_not_an_exception() -> None:
 
 def test_iteration_limit_is_a_status_with_a_finite_path() -> None:
     problem = _lane_change()
-    result = LateralQPSolver(refine_steps=0).solve(problem, max_iter=1)
+    result = LateralQPSolver().solve(problem, max_iter=1)
     assert result.info.status is SolverStatus.MAX_ITERATIONS
-    assert not result.ok and result.info.iterations == 1 and result.info.objective is None
+    assert not result.info.converged and result.info.iterations == 1 and result.info.objective is None
     assert np.all(np.isfinite(result.x))
     assert np.all(result.d[1:] >= problem.d_lower[1:]) and np.all(result.d[1:] <= problem.d_upper[1:])
 
 
-def test_refinement_turns_a_cut_short_iterate_into_the_optimum() -> None:
+def test_a_cut_short_iterate_is_a_consistent_path_the_caller_may_use() -> None:
+    """Out of iterations, the last iterate's d″ integrated from the initial state: usable (not converged),
+    the initial state and the integration rows exact, its violation of the bounds reported."""
     problem = _active_cases()["offset"][0]
-    reference = LateralQPSolver().solve(problem)
-    rescued = LateralQPSolver().solve(problem, max_iter=50)
-    assert "maximum iterations" in rescued.info.message
-    assert rescued.info.status is SolverStatus.SOLVED and rescued.info.iterations == 50
-    assert "refined" in rescued.info.message
-    _assert_feasible(problem, rescued, tol=1e-9)
-    np.testing.assert_allclose(rescued.x, reference.x, atol=1e-7)
-
-
-def test_a_bound_pressed_over_a_stretch_is_refined_to_the_exact_optimum() -> None:
-    """OSQP's polishing guesses the active set wrongly here (the optimum touches the bound at a few knots
-    and sags by < 0.1 mm in between); the active-set refinement must still end at a KKT point."""
-    problem = _active_cases()["all"][0]
-    result = LateralQPSolver().solve(problem)
-    assert result.info.status is SolverStatus.SOLVED
-    assert "refined" in result.info.message or "polished" in result.info.message
-    _assert_feasible(problem, result, tol=1e-9)
+    result = LateralQPSolver().solve(problem, max_iter=50)
+    assert result.info.status is SolverStatus.MAX_ITERATIONS and result.info.iterations == 50
+    assert result.info.usable and not result.info.converged
+    assert result.info.extras["returned"] == "integrated_iterate"
+    violations = _violations(problem, result)
+    assert max(violations[k] for k in ("initial", "jerk", "slope_integration", "offset_integration")) < 1e-9
+    _assert_reported(problem, result)
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -408,10 +418,14 @@ def test_warm_start_reuses_the_setup_and_needs_no_more_iterations() -> None:
 
 def test_setups_beyond_the_cache_are_dropped_least_recently_used_first() -> None:
     solver = LateralQPSolver(max_cached=2)
+    new_setup = []
     for n in (20, 30, 20, 40, 20, 30):
-        assert solver.solve(_lane_change(n=n)).ok
+        result = solver.solve(_lane_change(n=n))
+        assert result.info.converged
+        new_setup.append(result.info.setup_time_ms > 0.0)
     # 20 (set up), 30 (set up), 20 (reused), 40 (set up, drops 30), 20 (reused), 30 (set up again)
     assert solver.setup_count == 4
+    assert new_setup == [True, True, False, True, False, True]
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -456,15 +470,17 @@ def test_agrees_with_another_backend(case: str) -> None:
     else:
         problem = _active_cases()[case][0]
     result = LateralQPSolver().solve(problem)
-    assert result.info.status is SolverStatus.SOLVED
+    polished = case == "lane_change" or _POLISHED[case]
+    _assert_solved_or_reported(problem, result, polished)
     backend = _other_backend()
     assert backend is not None
     n = problem.n
     x = _solve_with(backend, *build_qp_matrices(problem))
-    np.testing.assert_allclose(result.d, x[:n], atol=1e-3)
-    np.testing.assert_allclose(result.dd, x[n : 2 * n], atol=1e-3)
+    atol = 1e-3 if polished else 2e-3  # the ADMM iterate where polishing fails
+    np.testing.assert_allclose(result.d, x[:n], atol=atol)
+    np.testing.assert_allclose(result.dd, x[n : 2 * n], atol=atol)
     assert objective(problem, x[:n], x[n : 2 * n], x[2 * n :]) == pytest.approx(
-        result.info.objective, rel=1e-4
+        result.info.objective, rel=1e-4 if polished else 1e-2
     )
 
 
@@ -532,8 +548,13 @@ def feasible_problems(draw: st.DrawFn) -> LateralQPProblem:
 @settings(max_examples=30, deadline=None)
 @given(feasible_problems())
 def test_property_feasible_problems_solve_within_their_constraints(problem: LateralQPProblem) -> None:
-    result = solve_lateral_qp(problem)
-    # Rarely the active-set refinement cannot certify the optimum and says so (solved_inaccurate);
-    # the constraints must hold either way.
-    assert result.info.status in (SolverStatus.SOLVED, SolverStatus.SOLVED_INACCURATE), result.info
-    _assert_feasible(problem, result)
+    result = LateralQPSolver().solve(problem)
+    # Where polishing fails the ADMM iterate comes back, solved_inaccurate when it misses a constraint by
+    # more than the feasibility tolerance; in a rare case (about 1 in 2000 draws) OSQP runs out of
+    # iterations and the integrated iterate comes back. Whatever comes back, its violation is reported.
+    assert result.info.usable, result.info
+    _assert_reported(problem, result)
+    if result.info.status is SolverStatus.SOLVED:
+        _assert_feasible(problem, result)
+    elif result.info.status is SolverStatus.SOLVED_INACCURATE:
+        assert result.info.max_violation <= _admm_tol(result)

@@ -1,0 +1,223 @@
+"""Every conversion between the API's models and the planner's dataclasses, in one place.
+
+:func:`to_problem` turns a validated request into a :class:`planner.problem.PlanningProblem`;
+:func:`from_problem` goes the other way (the demo endpoint); :func:`candidates_response` is the
+answer of ``/v1/candidates``; :func:`candidate_data` and :func:`plan_data` write the planner's answers
+as the JSON data of :class:`~app.models.candidates.Candidate` lists and
+:class:`~app.models.plan.PlanResponse`: plain lists and dicts built from the arrays (no model per
+point; finiteness checked on the arrays), ready for ``pydantic_core.to_json``.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from typing import Any, get_args
+
+import numpy as np
+
+from app.models.candidates import CandidatesDiagnostics, CandidatesResponse
+from app.models.plan import STAGES, TrajectoryPoint
+from app.models.planning import (
+    AnyObstacle,
+    Circle,
+    CircleObstacle,
+    DynamicObstacle,
+    Ego,
+    Lane,
+    Options,
+    PlanningRequest,
+    PolygonObstacle,
+    PredictedState,
+    Vehicle,
+)
+from planner import problem as pp
+from planner.candidates import CandidateSet
+from planner.ego import EgoFrenet
+from planner.pipeline import PlanResult
+from planner.pipeline import Status as PlanStatus
+from planner.reference import ReferenceLine
+from planner.roads import demo_problem
+from solvers.result import SolverStatus
+
+# -- requests ----------------------------------------------------------------------------------
+
+
+def _array(value: Any) -> Any:
+    return np.asarray(value, dtype=float) if isinstance(value, list) else float(value)
+
+
+def _obstacle_to_problem(o: AnyObstacle) -> pp.Obstacle:
+    if isinstance(o, PolygonObstacle):
+        return pp.PolygonObstacle(id=o.id, polygon=np.asarray(o.polygon, dtype=float))
+    if isinstance(o, CircleObstacle):
+        return pp.CircleObstacle(
+            id=o.id, center=np.asarray(o.circle.center, dtype=float), radius=o.circle.radius
+        )
+    states = np.array([[p.t, p.x, p.y, p.heading] for p in o.prediction], dtype=float)
+    return pp.DynamicObstacle(id=o.id, length=o.length, width=o.width, prediction=states)
+
+
+def to_problem(request: PlanningRequest, *, time_budget_ms: float | None = None) -> pp.PlanningProblem:
+    """The planner's :class:`~planner.problem.PlanningProblem` of a validated request;
+    ``time_budget_ms`` [ms] stands in for a budget the request leaves out."""
+    options = request.options.model_dump()
+    if options["time_budget_ms"] is None:
+        options["time_budget_ms"] = time_budget_ms
+    return pp.PlanningProblem(
+        reference_line=np.asarray(request.reference_line, dtype=float),
+        lane=pp.Lane(
+            left_width=_array(request.lane.left_width),
+            right_width=_array(request.lane.right_width),
+        ),
+        ego=pp.Ego(**request.ego.model_dump()),
+        obstacles=tuple(_obstacle_to_problem(o) for o in request.obstacles),
+        vehicle=pp.Vehicle(**request.vehicle.model_dump()),
+        options=pp.Options(**options),
+    )
+
+
+def _points(array: Any) -> list[tuple[float, float]]:
+    return [(float(x), float(y)) for x, y in np.asarray(array, dtype=float).tolist()]
+
+
+def _width_from_problem(width: Any) -> float | list[float]:
+    arr = np.asarray(width, dtype=float)
+    return float(arr) if arr.ndim == 0 else [float(w) for w in arr.tolist()]
+
+
+def _obstacle_from_problem(o: pp.Obstacle) -> AnyObstacle:
+    if isinstance(o, pp.PolygonObstacle):
+        return PolygonObstacle(id=o.id, polygon=_points(o.polygon))
+    if isinstance(o, pp.CircleObstacle):
+        x, y = (float(v) for v in np.asarray(o.center, dtype=float))
+        return CircleObstacle(id=o.id, circle=Circle(center=(x, y), radius=float(o.radius)))
+    states = [
+        PredictedState(t=t, x=x, y=y, heading=h)
+        for t, x, y, h in np.asarray(o.prediction, dtype=float).tolist()
+    ]
+    return DynamicObstacle(id=o.id, length=float(o.length), width=float(o.width), prediction=states)
+
+
+def from_problem(problem: pp.PlanningProblem) -> PlanningRequest:
+    """The request that :func:`to_problem` turns into ``problem`` (validated like any request).
+
+    ``Options.lateral_margin`` and ``Options.min_path_length`` are not part of the HTTP contract and
+    are dropped.
+    """
+    o = problem.options
+    return PlanningRequest(
+        reference_line=_points(problem.reference_line),
+        lane=Lane(
+            left_width=_width_from_problem(problem.lane.left_width),
+            right_width=_width_from_problem(problem.lane.right_width),
+        ),
+        obstacles=[_obstacle_from_problem(ob) for ob in problem.obstacles],
+        ego=Ego(
+            x=problem.ego.x,
+            y=problem.ego.y,
+            heading=problem.ego.heading,
+            speed=problem.ego.speed,
+            acceleration=problem.ego.acceleration,
+            curvature=problem.ego.curvature,
+        ),
+        vehicle=Vehicle(**{k: getattr(problem.vehicle, k) for k in Vehicle.model_fields}),
+        options=Options(**{k: getattr(o, k) for k in Options.model_fields}),
+    )
+
+
+@cache
+def demo_request() -> PlanningRequest:
+    """The built-in demo problem (:func:`planner.roads.demo_problem`) as a request."""
+    return from_problem(demo_problem())
+
+
+# -- answers -----------------------------------------------------------------------------------
+
+
+def _require_finite(what: str, *arrays: Any) -> None:
+    """Raise ``ValueError`` (a bug of the server: answered 500) if any of ``arrays`` is not finite."""
+    for array in arrays:
+        if not np.isfinite(np.asarray(array, dtype=float)).all():
+            raise ValueError(f"{what} holds a non-finite number")
+
+
+def candidates_response(cs: CandidateSet, ref: ReferenceLine, start: EgoFrenet) -> CandidatesResponse:
+    """The answer of ``/v1/candidates``: the candidates ``cs`` generated on ``ref`` from the ego's
+    Frenet state ``start``, and their diagnostics."""
+    diagnostics = CandidatesDiagnostics(
+        generated=cs.count,
+        repaired=int(np.count_nonzero(cs.repaired)),
+        generator=cs.generator,
+        reference_samples=ref.size,
+        reference_spacing=ref.spacing,
+        reference_length=ref.length,
+        reference_max_curvature=float(np.max(np.abs(ref.kappa))),
+        ego_s=start.s,
+        ego_d=start.d,
+        kept_points=int(np.count_nonzero(cs.valid)),
+    )
+    return CandidatesResponse(candidates=candidate_data(cs), diagnostics=diagnostics)
+
+
+def candidate_data(cs: CandidateSet) -> list[dict[str, Any]]:
+    """The kept points of every candidate of ``cs`` in driving order, as the JSON data of a list of
+    :class:`~app.models.candidates.Candidate` (plain lists and dicts: no model per point; finiteness
+    checked on the arrays)."""
+    keep = cs.valid
+    _require_finite("a candidate", cs.s[keep], cs.d[keep], cs.xy[keep])
+    out: list[dict[str, Any]] = []
+    for i in range(cs.count):
+        s, d, xy = cs.points(i)
+        points = [
+            {"s": a, "d": b, "x": x, "y": y}
+            for a, b, x, y in zip(s.tolist(), d.tolist(), xy[:, 0].tolist(), xy[:, 1].tolist(), strict=True)
+        ]
+        out.append({"points": points, "repaired": bool(cs.repaired[i])})
+    return out
+
+
+_TRAJECTORY_FIELDS = tuple(TrajectoryPoint.model_fields)
+
+
+def plan_data(result: PlanResult) -> dict[str, Any]:
+    """The answer to :func:`planner.pipeline.plan`'s ``result`` as the JSON data of
+    :class:`~app.models.plan.PlanResponse` (plain lists and dicts built from the arrays, ready for
+    ``pydantic_core.to_json``; ``candidates`` only when the planner returned them; every stage of
+    :data:`~app.models.plan.STAGES`, 0 for one that did not run).
+
+    A non-finite number or an unknown solver status is a bug and raises ``ValueError``.
+    """
+    if result.status not in get_args(PlanStatus):
+        raise ValueError(f"unknown plan status {result.status!r}")
+    traj = result.trajectory
+    columns = [np.asarray(getattr(traj, name), dtype=float) for name in _TRAJECTORY_FIELDS]
+    _require_finite("the trajectory", *columns)
+    rows = zip(*(c.tolist() for c in columns), strict=True)
+    diag = result.diagnostics
+    timing = [float(diag.timing_ms.get(name, 0.0)) for name in STAGES]
+    _require_finite("the diagnostics", diag.lateral_qp.solve_time_ms, diag.speed.solve_time_ms, timing)
+    data: dict[str, Any] = {
+        "status": result.status,
+        "message": str(result.message),
+        "trajectory": [dict(zip(_TRAJECTORY_FIELDS, row, strict=True)) for row in rows],
+    }
+    if result.candidates is not None:
+        data["candidates"] = candidate_data(result.candidates)
+    data["diagnostics"] = {
+        "candidates": {
+            "generated": int(diag.candidates.generated),
+            "repaired": int(diag.candidates.repaired),
+            "collision_free": int(diag.candidates.collision_free),
+        },
+        "lateral_qp": {
+            "status": SolverStatus(diag.lateral_qp.status).value,
+            "iterations": int(diag.lateral_qp.iterations),
+            "solve_time_ms": float(diag.lateral_qp.solve_time_ms),
+        },
+        "speed": {
+            "status": SolverStatus(diag.speed.status).value,
+            "solve_time_ms": float(diag.speed.solve_time_ms),
+        },
+        "timing_ms": dict(zip(STAGES, timing, strict=True)),
+    }
+    return data

@@ -1,0 +1,395 @@
+"""The planning request of ``/v1/plan`` and ``/v1/candidates``: reference line, lane, obstacles, ego
+state, vehicle and options, each with its limits (:mod:`app.limits`) and cross-field checks.
+
+The defaults of the vehicle and the options are the planner's (:class:`planner.problem.Vehicle`,
+:class:`planner.problem.Options`); :mod:`app.conversions` turns a request into the planner's problem.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+import numpy as np
+from pydantic import ConfigDict, Discriminator, Field, Tag, field_validator, model_validator
+from pydantic_core import PydanticCustomError
+
+from app.limits import (
+    MAX_CANDIDATES,
+    MAX_HEADING,
+    MAX_ID_LENGTH,
+    MAX_LANE_WIDTH,
+    MAX_OBSTACLE_OUTLINE,
+    MAX_OBSTACLE_SIZE,
+    MAX_OBSTACLES,
+    MAX_PLAN_HORIZON,
+    MAX_POINTS_PER_CANDIDATE,
+    MAX_POLYGON_POINTS,
+    MAX_PREDICTION_STATES,
+    MAX_PREDICTION_TIME,
+    MAX_SEED,
+    MAX_TIME_BUDGET_MS,
+    MAX_TOTAL_CANDIDATE_POINTS,
+    MAX_TRAJECTORY_STEP,
+    MAX_VEHICLE_ACCELERATION,
+    MAX_VEHICLE_CURVATURE,
+    MAX_VEHICLE_LENGTH,
+    MAX_VEHICLE_SPEED,
+    MAX_VEHICLE_WIDTH,
+    MIN_OBSTACLE_SIZE,
+    MIN_POINTS_PER_CANDIDATE,
+    MIN_POLYGON_AREA,
+    MIN_POLYGON_POINTS,
+    MIN_TIME_BUDGET_MS,
+    MIN_TRAJECTORY_STEP,
+    MIN_VEHICLE_ACCELERATION,
+    MIN_VEHICLE_CURVATURE,
+)
+from app.models.common import (
+    CIRCLE,
+    DYNAMIC,
+    PER_POINT_WIDTH,
+    POLYGON,
+    SCALAR_WIDTH,
+    Coordinate,
+    Point,
+    ReferencePolyline,
+    RequestModel,
+    field_error,
+    number,
+)
+from planner import problem as pp
+
+Heading = Annotated[float, number(ge=-MAX_HEADING, le=MAX_HEADING)]
+Time = Annotated[float, number(ge=-MAX_PREDICTION_TIME, le=MAX_PREDICTION_TIME)]
+Width = Annotated[float, number(ge=0.0, le=MAX_LANE_WIDTH)]
+Size = Annotated[float, number(ge=MIN_OBSTACLE_SIZE, le=MAX_OBSTACLE_SIZE)]
+Speed = Annotated[float, number(ge=0.0, le=MAX_VEHICLE_SPEED)]
+#: a vehicle's acceleration or deceleration limit [m/s²]
+AccelerationLimit = Annotated[float, number(ge=MIN_VEHICLE_ACCELERATION, le=MAX_VEHICLE_ACCELERATION)]
+ObstacleId = Annotated[str, Field(strict=True, min_length=1, max_length=MAX_ID_LENGTH)]
+
+
+def _width_kind(value: Any) -> str | None:
+    if isinstance(value, list | tuple | np.ndarray):
+        return PER_POINT_WIDTH
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return SCALAR_WIDTH
+    return None
+
+
+LaneWidth = Annotated[
+    Annotated[Width, Tag(SCALAR_WIDTH)] | Annotated[list[Width], Tag(PER_POINT_WIDTH)],
+    Discriminator(
+        _width_kind,
+        custom_error_type="width_type",
+        custom_error_message="must be a number ≥ 0 or a list with one number per reference point",
+    ),
+]
+
+
+class Lane(RequestModel):
+    """Lane bounds either side of the reference [m]: one width for the whole lane, or one per
+    reference point (interpolated along the reference; 0 allowed)."""
+
+    left_width: LaneWidth = Field(description="Width to the left of the reference [m].")
+    right_width: LaneWidth = Field(description="Width to the right of the reference [m].")
+
+
+class PolygonObstacle(RequestModel):
+    """A static obstacle given by its outline."""
+
+    id: ObstacleId
+    polygon: list[Point] = Field(
+        min_length=MIN_POLYGON_POINTS,
+        max_length=MAX_POLYGON_POINTS,
+        description=f"Outline [[x, y], …] [m], at least {MIN_POLYGON_POINTS} points enclosing a nonzero "
+        "area.",
+    )
+
+    @field_validator("polygon")
+    @classmethod
+    def _non_degenerate(cls, polygon: list[tuple[float, float]]) -> list[tuple[float, float]]:
+        p = np.asarray(polygon, dtype=float)
+        p = p - p[0]  # shoelace relative to a vertex: no cancellation far from the origin
+        q = np.roll(p, -1, axis=0)
+        area = 0.5 * abs(float(np.sum(p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1])))
+        if not area > MIN_POLYGON_AREA:
+            raise PydanticCustomError(
+                "degenerate_polygon",
+                "the polygon has no area: its points coincide or are collinear",
+            )
+        return polygon
+
+
+class Circle(RequestModel):
+    """A disc."""
+
+    center: Point
+    radius: Size = Field(description="Radius [m].")
+
+
+class CircleObstacle(RequestModel):
+    """A static disc."""
+
+    id: ObstacleId
+    circle: Circle
+
+
+class PredictedState(RequestModel):
+    """One predicted state of a moving obstacle's centre."""
+
+    t: Time = Field(description="Time [s] (the ego's state is at t = 0).")
+    x: Coordinate = Field(description="Centre x [m].")
+    y: Coordinate = Field(description="Centre y [m].")
+    heading: Heading = Field(description="Heading, counter-clockwise from +x [rad].")
+
+
+class DynamicObstacle(RequestModel):
+    """A moving box ``length × width`` centred at each predicted state."""
+
+    id: ObstacleId
+    length: Size = Field(description="Length [m].")
+    width: Size = Field(description="Width [m].")
+    prediction: list[PredictedState] = Field(
+        min_length=1,
+        max_length=MAX_PREDICTION_STATES,
+        description="Predicted states, t strictly increasing.",
+    )
+
+    @field_validator("prediction")
+    @classmethod
+    def _increasing_time(cls, states: list[PredictedState]) -> list[PredictedState]:
+        for i in range(1, len(states)):
+            if not states[i].t > states[i - 1].t:
+                raise field_error(
+                    (i, "t"),
+                    "t_not_increasing",
+                    f"t must increase strictly: {states[i].t} follows {states[i - 1].t}",
+                    states[i].t,
+                )
+        return states
+
+
+#: an obstacle of a request, whichever its shape
+AnyObstacle = PolygonObstacle | CircleObstacle | DynamicObstacle
+
+
+def _outline_length(o: AnyObstacle) -> float:
+    """Length of an obstacle's outline [m]: perimeter, circumference, or its box's perimeter."""
+    if isinstance(o, PolygonObstacle):
+        p = np.asarray(o.polygon, dtype=float)
+        return float(np.linalg.norm(p - np.roll(p, -1, axis=0), axis=1).sum())
+    if isinstance(o, CircleObstacle):
+        return 2.0 * np.pi * o.circle.radius
+    return 2.0 * (o.length + o.width)
+
+
+def _obstacle_kind(value: Any) -> str | None:
+    """The union member of an obstacle: by its one shape key (JSON) or by its class (Python)."""
+    if isinstance(value, dict):
+        tags = [
+            tag
+            for key, tag in (("polygon", POLYGON), ("circle", CIRCLE), ("prediction", DYNAMIC))
+            if key in value
+        ]
+        return tags[0] if len(tags) == 1 else None
+    for model, tag in (
+        (PolygonObstacle, POLYGON),
+        (CircleObstacle, CIRCLE),
+        (DynamicObstacle, DYNAMIC),
+    ):
+        if isinstance(value, model):
+            return tag
+    return None
+
+
+Obstacle = Annotated[
+    Annotated[PolygonObstacle, Tag(POLYGON)]
+    | Annotated[CircleObstacle, Tag(CIRCLE)]
+    | Annotated[DynamicObstacle, Tag(DYNAMIC)],
+    Discriminator(
+        _obstacle_kind,
+        custom_error_type="obstacle_shape",
+        custom_error_message=(
+            "an obstacle is an object with exactly one of 'polygon', 'circle' or 'prediction'"
+        ),
+    ),
+]
+
+
+class Ego(RequestModel):
+    """The vehicle's current state (its geometric centre)."""
+
+    x: Coordinate = Field(description="Centre x [m].")
+    y: Coordinate = Field(description="Centre y [m].")
+    heading: Heading = Field(description="Heading, counter-clockwise from +x [rad].")
+    speed: Speed = Field(0.0, description="Speed [m/s].")
+    acceleration: float = number(
+        ge=-MAX_VEHICLE_ACCELERATION,
+        le=MAX_VEHICLE_ACCELERATION,
+        default=0.0,
+        description="Acceleration [m/s²].",
+    )
+    curvature: float | None = number(
+        ge=-MAX_VEHICLE_CURVATURE,
+        le=MAX_VEHICLE_CURVATURE,
+        default=None,
+        description="Path curvature [1/m], if known.",
+    )
+
+
+_VEHICLE = pp.Vehicle()
+_OPTIONS = pp.Options()
+
+
+class Vehicle(RequestModel):
+    """Vehicle footprint and limits (all positive; the acceleration and curvature limits at least
+    0.01 m/s² and 1e-4 1/m)."""
+
+    length: float = number(
+        gt=0.0, le=MAX_VEHICLE_LENGTH, default=_VEHICLE.length, description="Length [m]."
+    )
+    width: float = number(
+        gt=0.0, le=MAX_VEHICLE_WIDTH, default=_VEHICLE.width, description="Width [m]."
+    )
+    max_speed: float = number(
+        gt=0.0, le=MAX_VEHICLE_SPEED, default=_VEHICLE.max_speed, description="Speed limit [m/s]."
+    )
+    max_acceleration: AccelerationLimit = Field(_VEHICLE.max_acceleration, description="[m/s²]")
+    max_deceleration: AccelerationLimit = Field(
+        _VEHICLE.max_deceleration, description="[m/s²], positive."
+    )
+    max_lateral_acceleration: AccelerationLimit = Field(
+        _VEHICLE.max_lateral_acceleration, description="[m/s²]"
+    )
+    max_curvature: float = number(
+        ge=MIN_VEHICLE_CURVATURE,
+        le=MAX_VEHICLE_CURVATURE,
+        default=_VEHICLE.max_curvature,
+        description="[1/m]",
+    )
+
+
+class Options(RequestModel):
+    """Planning options."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "description": "Planning options; dt may not exceed horizon_time, and num_candidates × "
+            f"num_points may not exceed {MAX_TOTAL_CANDIDATE_POINTS} (the size of the candidates' answer)."
+        }
+    )
+
+    horizon_time: float = number(
+        gt=0.0, le=MAX_PLAN_HORIZON, default=_OPTIONS.horizon_time, description="Planning horizon [s]."
+    )
+    dt: float = number(
+        ge=MIN_TRAJECTORY_STEP,
+        le=MAX_TRAJECTORY_STEP,
+        default=_OPTIONS.dt,
+        description="Trajectory sampling step [s].",
+    )
+    target_speed: float | None = number(
+        ge=0.0,
+        le=MAX_VEHICLE_SPEED,
+        default=_OPTIONS.target_speed,
+        description="Desired speed [m/s]; null means the vehicle's max_speed.",
+    )
+    num_candidates: int = Field(
+        _OPTIONS.num_candidates, strict=True, ge=1, le=MAX_CANDIDATES, description="Candidate paths."
+    )
+    num_points: int = Field(
+        _OPTIONS.num_points,
+        strict=True,
+        ge=MIN_POINTS_PER_CANDIDATE,
+        le=MAX_POINTS_PER_CANDIDATE,
+        description="Points per candidate.",
+    )
+    generator: pp.Generator = Field(
+        _OPTIONS.generator,
+        description="`naive` (Algorithm 4, folds where κ·d ≥ 1) or `transf_kappa` (Algorithm 5).",
+    )
+    seed: int = Field(
+        _OPTIONS.seed, strict=True, ge=0, le=MAX_SEED, description="Seed of the candidates."
+    )
+    return_candidates: bool = Field(
+        _OPTIONS.return_candidates, strict=True, description="Include candidates in a plan."
+    )
+    time_budget_ms: float | None = number(
+        ge=MIN_TIME_BUDGET_MS,
+        le=MAX_TIME_BUDGET_MS,
+        default=None,
+        description="Compute budget of a plan [ms]: a stage that ends past it makes the answer a braking "
+        "`fallback` saying so. null: the server's default (setting KAPPA_TIME_BUDGET_MS).",
+    )
+
+    @model_validator(mode="after")
+    def _answer_size(self) -> Options:
+        if self.dt > self.horizon_time:
+            raise field_error(
+                ("dt",),
+                "dt_above_horizon",
+                f"dt = {self.dt} s is longer than horizon_time = {self.horizon_time} s: the trajectory "
+                "would be its start alone",
+                self.dt,
+            )
+        total = self.num_candidates * self.num_points
+        if total > MAX_TOTAL_CANDIDATE_POINTS:
+            raise field_error(
+                ("num_points",),
+                "too_many_points",
+                f"num_candidates × num_points = {total}; at most {MAX_TOTAL_CANDIDATE_POINTS}",
+                self.num_points,
+            )
+        return self
+
+
+class PlanningRequest(RequestModel):
+    """A planning problem: reference line, lane, obstacles, ego state, vehicle and options."""
+
+    reference_line: ReferencePolyline
+    lane: Lane
+    obstacles: list[Obstacle] = Field(
+        default_factory=list,
+        max_length=MAX_OBSTACLES,
+        description="Obstacles, ids unique, their outlines at most "
+        f"{MAX_OBSTACLE_OUTLINE:.0f} m long in all.",
+    )
+    ego: Ego
+    vehicle: Vehicle = Field(default_factory=Vehicle)
+    options: Options = Field(default_factory=Options)
+
+    @field_validator("obstacles")
+    @classmethod
+    def _unique_ids(cls, obstacles: list[AnyObstacle]) -> list[AnyObstacle]:
+        seen: set[str] = set()
+        for i, obstacle in enumerate(obstacles):
+            if obstacle.id in seen:
+                raise field_error(
+                    (i, "id"), "duplicate_id", "another obstacle has this id", obstacle.id
+                )
+            seen.add(obstacle.id)
+        total = sum(_outline_length(o) for o in obstacles)
+        if total > MAX_OBSTACLE_OUTLINE:
+            raise PydanticCustomError(
+                "obstacles_too_large",
+                f"the obstacles' outlines are {total:.0f} m long in all; "
+                f"at most {MAX_OBSTACLE_OUTLINE:.0f} m is accepted",
+            )
+        return obstacles
+
+    @model_validator(mode="after")
+    def _widths_match_reference(self) -> PlanningRequest:
+        n = len(self.reference_line)
+        for name in ("left_width", "right_width"):
+            width = getattr(self.lane, name)
+            if isinstance(width, list) and len(width) != n:
+                raise field_error(
+                    ("lane", name),
+                    "width_length",
+                    f"has {len(width)} values but reference_line has {n} points; "
+                    "give one width per reference point or a single number",
+                    len(width),
+                )
+        return self
+

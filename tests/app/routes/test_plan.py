@@ -1,0 +1,251 @@
+"""POST /v1/plan: the demo plans, candidates on request, a blocked road stops, errors keep their shape,
+and every answer matches the OpenAPI document.
+
+``candidates`` is omitted from the answer (the key is absent, never null) unless
+``options.return_candidates`` is true.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from app.deps import get_plan_executor
+from app.executor import Overloaded, PlanExecutor
+from app.main import app, create_app
+from app.models.plan import STAGES, PlanResponse
+from app.routes import plan as plan_route
+from app.settings import Settings
+from planner.pipeline import plan
+from solvers.result import SolveInfo, SolverStatus
+
+TRAJECTORY_KEYS = {"t", "x", "y", "heading", "curvature", "v", "a", "s", "d"}
+#: a straight road closed by a wall across it at x = 60 … 62
+BLOCKED: dict[str, Any] = {
+    "reference_line": [[0.0, 0.0], [200.0, 0.0]],
+    "lane": {"left_width": 3.5, "right_width": 3.5},
+    "obstacles": [{"id": "wall", "polygon": [[60.0, -4.0], [62.0, -4.0], [62.0, 4.0], [60.0, 4.0]]}],
+    "ego": {"x": 10.0, "y": 0.0, "heading": 0.0, "speed": 8.0},
+}
+
+
+def _plan(client: TestClient, body: dict[str, Any]) -> dict[str, Any]:
+    r = client.post("/v1/plan", json=body)
+    assert r.status_code == 200, r.text
+    # the answer is written without the model (app.routes.plan): it must be exactly the model's JSON
+    model = PlanResponse.model_validate_json(r.content, strict=True)
+    assert model.model_dump_json(exclude_none=True).encode() == r.content
+    out: dict[str, Any] = r.json()
+    return out
+
+
+def _column(out: dict[str, Any], key: str) -> np.ndarray:
+    return np.array([p[key] for p in out["trajectory"]])
+
+
+def test_demo_plans_from_the_ego(client: TestClient, demo: dict[str, Any]) -> None:
+    out = _plan(client, demo)
+    assert out["status"] == "ok", out["message"]
+    assert "candidates" not in out
+    ego, options = demo["ego"], demo["options"]
+    first = out["trajectory"][0]
+    assert (first["x"], first["y"]) == pytest.approx((ego["x"], ego["y"]), abs=1e-6)
+    assert first["heading"] == pytest.approx(ego["heading"], abs=1e-6)
+    assert first["v"] == pytest.approx(ego["speed"], abs=1e-9)
+    steps = round(options["horizon_time"] / options["dt"])
+    t = _column(out, "t")
+    assert t == pytest.approx(options["dt"] * np.arange(steps + 1), abs=1e-9)
+    assert t[-1] == pytest.approx(options["horizon_time"])
+    assert all(set(p) == TRAJECTORY_KEYS for p in out["trajectory"])
+    assert all(math.isfinite(v) for p in out["trajectory"] for v in p.values())
+    assert np.all(_column(out, "v") >= 0.0)
+    assert np.all(np.diff(_column(out, "s")) >= 0.0)  # never backwards along the reference
+    diag = out["diagnostics"]
+    assert diag["candidates"]["generated"] == options["num_candidates"]
+    assert 0 < diag["candidates"]["collision_free"] <= diag["candidates"]["generated"]
+    assert diag["lateral_qp"]["status"] == "solved"
+    assert SolverStatus(diag["speed"]["status"]).usable  # an `ok` plan drives a usable speed profile
+    assert set(diag["timing_ms"]) == set(STAGES)
+    timing = diag["timing_ms"]
+    assert timing["total"] >= timing["reference"] + timing["candidates"] + timing["lateral"]
+
+
+def test_candidates_only_on_request(client: TestClient, demo: dict[str, Any]) -> None:
+    demo["options"].update(num_candidates=6, return_candidates=True)
+    out = _plan(client, demo)
+    assert len(out["candidates"]) == 6
+    for candidate in out["candidates"]:
+        assert set(candidate) == {"points", "repaired"}
+        assert candidate["points"] and all(set(p) == set("sdxy") for p in candidate["points"])
+    # the same serialisation as /v1/candidates, the same candidates (they depend on the seed only)
+    alone = client.post("/v1/candidates", json=demo).json()
+    assert out["candidates"] == alone["candidates"]
+
+    demo["options"]["return_candidates"] = False
+    out = _plan(client, demo)
+    assert "candidates" not in out
+
+
+def test_blocked_road_stops_before_the_block(client: TestClient) -> None:
+    out = _plan(client, BLOCKED)
+    assert out["status"] == "stopped", out["message"]
+    vehicle = app.openapi()["components"]["schemas"]["Vehicle"]["properties"]
+    front = _column(out, "x") + 0.5 * vehicle["length"]["default"]
+    assert np.all(front < 60.0)
+    v = _column(out, "v")
+    assert np.all(v >= 0.0)
+    assert v[-1] == pytest.approx(0.0, abs=0.05)
+
+
+def _error_fields(r: Any, code: str) -> list[str]:
+    """The fields an answer names, after checking it is a 422 ``code`` in the one error shape."""
+    assert r.status_code == 422, r.text
+    body: dict[str, Any] = r.json()
+    assert set(body) == {"error"} and set(body["error"]) == {"code", "message", "details"}
+    assert body["error"]["code"] == code
+    assert all(set(d) == {"field", "message"} for d in body["error"]["details"])
+    return [d["field"] for d in body["error"]["details"]]
+
+
+def test_invalid_requests_are_422_in_the_error_shape(client: TestClient, demo: dict[str, Any]) -> None:
+    r = client.post("/v1/plan", content=b"{", headers={"content-type": "application/json"})
+    assert _error_fields(r, "malformed_json") == [""]
+
+    bad = {**demo, "options": {**demo["options"], "dt": 0.0, "return_candidate": True}}
+    fields = _error_fields(client.post("/v1/plan", json=bad), "invalid_request")
+    assert set(fields) == {"options.dt", "options.return_candidate"}
+
+    del demo["ego"]
+    assert "ego" in _error_fields(client.post("/v1/plan", json=demo), "invalid_request")
+
+
+def test_unusable_geometry_is_422(client: TestClient, demo: dict[str, Any]) -> None:
+    demo["ego"]["heading"] = 3.0  # against the driving direction: a planner domain error
+    assert "ego.heading" in _error_fields(client.post("/v1/plan", json=demo), "invalid_input")
+
+
+def test_planning_failure_is_a_200_fallback(
+    client: TestClient, demo: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A fallback answer keeps the contract even for stages that did not run (no timing, no solve)."""
+
+    def failing(problem: Any) -> Any:
+        result = plan(problem)
+        timing = {k: v for k, v in result.diagnostics.timing_ms.items() if k not in ("speed", "trajectory")}
+        not_run = SolveInfo(SolverStatus.FAILED, 0, 0.0, None, "not run")
+        diagnostics = dataclasses.replace(result.diagnostics, speed=not_run, timing_ms=timing)
+        return dataclasses.replace(
+            result, status="fallback", message="speed profile failed", diagnostics=diagnostics
+        )
+
+    monkeypatch.setattr(plan_route, "plan", failing)
+    out = _plan(client, demo)
+    assert (out["status"], out["message"]) == ("fallback", "speed profile failed")
+    assert out["diagnostics"]["speed"] == {"status": "failed", "solve_time_ms": 0.0}
+    assert out["diagnostics"]["timing_ms"]["speed"] == 0.0
+    assert out["trajectory"]
+
+
+def test_non_finite_plan_is_a_500_not_null(
+    client: TestClient, demo: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def broken(problem: Any) -> Any:
+        result = plan(problem)
+        x = result.trajectory.x.copy()
+        x[3] = np.nan
+        return dataclasses.replace(result, trajectory=dataclasses.replace(result.trajectory, x=x))
+
+    monkeypatch.setattr(plan_route, "plan", broken)
+    r = client.post("/v1/plan", json=demo)
+    assert r.status_code == 500
+    assert r.json()["error"]["code"] == "internal_error"
+
+
+def _check(value: Any, schema: dict[str, Any], components: dict[str, Any], where: str = "") -> None:
+    """``value`` against the subset of JSON Schema the document uses ($ref, type, enum, required,
+    properties, items, additionalProperties)."""
+    if "$ref" in schema:
+        schema = components[schema["$ref"].rsplit("/", 1)[1]]
+    kinds = {"object": dict, "array": list, "string": str, "boolean": bool, "integer": int}
+    kind = schema.get("type")
+    if kind == "number":
+        assert isinstance(value, int | float) and not isinstance(value, bool), where
+    elif kind == "integer":
+        assert isinstance(value, int) and not isinstance(value, bool), where
+    elif kind is not None:
+        assert isinstance(value, kinds[kind]), (where, kind, value)
+    if "enum" in schema:
+        assert value in schema["enum"], where
+    if kind == "object":
+        assert set(schema.get("required", ())) <= set(value), where
+        properties = schema.get("properties", {})
+        if schema.get("additionalProperties") is False:
+            assert set(value) <= set(properties), where
+        for key, item in value.items():
+            if key in properties:
+                _check(item, properties[key], components, f"{where}.{key}")
+    if kind == "array":
+        for i, item in enumerate(value):
+            _check(item, schema["items"], components, f"{where}.{i}")
+
+
+def test_answers_match_the_openapi_schema(client: TestClient, demo: dict[str, Any]) -> None:
+    spec = app.openapi()
+    components = spec["components"]["schemas"]
+    op = spec["paths"]["/v1/plan"]["post"]
+    assert (op["operationId"], op["tags"]) == ("plan_trajectory", ["planning"])
+    example = op["requestBody"]["content"]["application/json"]["examples"]["demo"]["value"]
+    options = {k: v for k, v in demo["options"].items() if v is not None}  # the document leaves out nulls
+    assert {k: example[k] for k in ("reference_line", "obstacles", "options")} == {
+        "reference_line": demo["reference_line"],
+        "obstacles": demo["obstacles"],
+        "options": options,
+    }
+    schema = op["responses"]["200"]["content"]["application/json"]["schema"]
+    assert schema == {"$ref": "#/components/schemas/PlanResponse"}
+    response = components["PlanResponse"]
+    assert set(response["required"]) == {"status", "message", "trajectory", "diagnostics"}
+    assert response["properties"]["status"]["enum"] == ["ok", "stopped", "fallback"]
+    assert response["properties"]["candidates"]["type"] == "array"  # never null
+    assert components["SolverStatus"]["enum"] == [s.value for s in SolverStatus]
+    assert set(components["TrajectoryPoint"]["required"]) == TRAJECTORY_KEYS
+    assert set(components["PlanTiming"]["required"]) == set(STAGES)
+
+    demo["options"].update(num_candidates=3, return_candidates=True)
+    for body in (demo, BLOCKED):
+        _check(_plan(client, body), schema, components, "answer")
+
+
+def test_time_budget_from_the_request_or_the_server_default(demo: dict[str, Any]) -> None:
+    from app.main import create_app
+    from app.settings import Settings
+
+    tight = TestClient(create_app(Settings(plan_processes=0, time_budget_ms=1.0)))
+    with tight:
+        answer = tight.post("/v1/plan", json=demo).json()  # the server's 1 ms default
+        assert answer["status"] == "fallback" and "time budget of 1 ms spent" in answer["message"]
+        assert answer["trajectory"][-1]["v"] == pytest.approx(0.0, abs=1e-9)
+        demo["options"]["time_budget_ms"] = 10_000.0  # the request's own budget wins
+        assert tight.post("/v1/plan", json=demo).json()["status"] == "ok"
+        demo["options"]["time_budget_ms"] = 0.0
+        r = tight.post("/v1/plan", json=demo)
+        assert r.status_code == 422
+        assert r.json()["error"]["details"][0]["field"] == "options.time_budget_ms"
+
+
+class _FullExecutor(PlanExecutor):
+    async def run(self, fn: Any, arg: Any) -> Any:
+        raise Overloaded("256 plans are queued or running")
+
+
+def test_overload_is_a_503_to_retry(demo: dict[str, Any]) -> None:
+    app = create_app(Settings(plan_processes=0))
+    app.dependency_overrides[get_plan_executor] = lambda: _FullExecutor(processes=0, max_pending=1)
+    r = TestClient(app).post("/v1/plan", json=demo, headers={"X-Request-ID": "busy"})
+    assert r.status_code == 503 and r.headers["Retry-After"] == "1" and r.headers["X-Request-ID"] == "busy"
+    assert r.json()["error"]["code"] == "overloaded" and "256 plans" in r.json()["error"]["message"]

@@ -1,0 +1,273 @@
+"""CommonRoad conversion: the pure geometry (no commonroad-io), the JSON inputs, and — with the
+``commonroad`` extra installed — whole XML scenarios and the ``kappa-planner commonroad`` command."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.models.planning import PlanningRequest
+from planner.pipeline import plan
+from planner_tools import commonroad as cr
+from planner_tools.cli import main as cli_main
+from planner_tools.io import problem_from_json
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "commonroad"
+
+
+def _arc(radius: float, start: float, stop: float, n: int = 60) -> np.ndarray:
+    a = np.linspace(start, stop, n)
+    return np.column_stack((radius * np.cos(a), radius * np.sin(a)))
+
+
+# --------------------------------------------------------------------------------------------------
+# Lane widths from edge polylines
+# --------------------------------------------------------------------------------------------------
+
+
+def test_widths_of_a_straight_lane_hold_up_to_both_ends() -> None:
+    left = np.array([[0.0, 2.0], [50.0, 2.0]])
+    right = np.array([[0.0, -1.5], [50.0, -1.5]])
+    # the first and last points sit on the lane's end caps: the reference converter gave them 0
+    pts = np.column_stack((np.linspace(0.0, 50.0, 51), np.full(51, 0.25)))
+    wl, wr = cr.boundary_widths(pts, left, right)
+    np.testing.assert_allclose(wl, 1.75, atol=1e-9)
+    np.testing.assert_allclose(wr, 1.75, atol=1e-9)
+
+
+def test_widths_follow_a_curved_lane_and_are_zero_beyond_an_edge() -> None:
+    # a left turn of radius 10 m: left edge (inner) at 8 m, right edge (outer) at 13 m
+    left = _arc(8.0, -0.5 * math.pi, 0.0)
+    right = _arc(13.0, -0.5 * math.pi, 0.0)
+    centre = _arc(10.0, -0.45 * math.pi, -0.05 * math.pi, 20)
+    wl, wr = cr.boundary_widths(centre, left, right)
+    np.testing.assert_allclose(wl, 2.0, atol=0.02)
+    np.testing.assert_allclose(wr, 3.0, atol=0.02)
+    beyond_left = _arc(7.0, -0.3 * math.pi, -0.2 * math.pi, 3)
+    wl, wr = cr.boundary_widths(beyond_left, left, right)
+    np.testing.assert_array_equal(wl, 0.0)
+    np.testing.assert_allclose(wr, 6.0, atol=0.02)
+    beyond_right = _arc(14.0, -0.3 * math.pi, -0.2 * math.pi, 3)
+    wl, wr = cr.boundary_widths(beyond_right, left, right)
+    np.testing.assert_allclose(wl, 6.0, atol=0.02)
+    np.testing.assert_array_equal(wr, 0.0)
+
+
+def test_a_spike_of_the_map_edge_is_dropped() -> None:
+    edge = np.array([[0.0, -1.75], [10.0, -1.75], [10.2, -0.2], [10.4, -1.75], [20.0, -1.75]])
+    cleaned = cr.clean_edge(edge)
+    np.testing.assert_array_equal(cleaned[:, 1], -1.75)
+    wl, wr = cr.boundary_widths([[10.2, 0.0]], [[0.0, 1.75], [20.0, 1.75]], edge)
+    assert wr[0] == pytest.approx(1.75)
+    assert wl[0] == pytest.approx(1.75)
+
+
+def test_join_edges_joins_only_continuing_neighbours() -> None:
+    a = np.array([[0.0, 1.0], [5.0, 1.0]])
+    b = np.array([[5.0, 1.0], [5.5, 1.0]])  # a short lanelet
+    c = np.array([[5.5, 1.0], [12.0, 1.0]])
+    d = np.array([[13.0, 4.0], [20.0, 4.0]])  # a lane added: the edge jumps
+    np.testing.assert_array_equal(
+        cr.join_edges([a, b, c, d], 1), [[0.0, 1.0], [5.0, 1.0], [5.5, 1.0], [12.0, 1.0]]
+    )
+    np.testing.assert_array_equal(cr.join_edges([a, b, c, d], 3), [[13.0, 4.0], [20.0, 4.0]])
+
+
+def test_points_of_a_hairpin_are_given_to_their_own_leg() -> None:
+    # out along y = 0, back along y = 3 (a U-turn of radius 1.5 m): both legs are 3 m apart
+    out = np.column_stack((np.linspace(0.0, 30.0, 31), np.zeros(31)))
+    turn = 30.0 + _arc(1.5, -0.5 * math.pi, 0.5 * math.pi, 20) + [0.0, 1.5]
+    back = np.column_stack((np.linspace(30.0, 0.0, 31), np.full(31, 3.0)))
+    line = np.vstack((out, turn[1:], back[1:]))
+    owner = cr.assign_pieces(line, [out, turn, back], window=5.0)
+    assert np.all(owner[:25] == 0)
+    assert np.all(owner[-25:] == 2)
+    assert set(np.unique(owner)) == {0, 1, 2}
+
+
+# --------------------------------------------------------------------------------------------------
+# Resampling, smoothing, predictions, target speed
+# --------------------------------------------------------------------------------------------------
+
+
+def test_resample_is_uniform_and_keeps_the_ends() -> None:
+    pts, s = cr.resample([[0.0, 0.0], [3.0, 0.0], [3.0, 4.5]], 1.0)
+    assert pts[0].tolist() == [0.0, 0.0] and pts[-1].tolist() == [3.0, 4.5]
+    np.testing.assert_allclose(np.diff(s), 7.5 / 8)
+
+
+def test_smooth_keeps_a_straight_line_and_rounds_a_corner() -> None:
+    line = np.column_stack((np.arange(30.0), 0.5 * np.arange(30.0)))
+    np.testing.assert_allclose(cr.smooth(line, 1.5, 1.0), line, atol=1e-9)
+    corner = np.vstack((np.column_stack((np.arange(15.0), np.zeros(15))), [[14.0, k] for k in range(1, 15)]))
+    smoothed = cr.smooth(corner, 1.5, 1.0)
+    assert smoothed[0].tolist() == corner[0].tolist() and smoothed[-1].tolist() == corner[-1].tolist()
+    assert 0.1 < np.hypot(*(smoothed[14] - corner[14])) < 1.5  # the corner is cut, a little
+
+
+def test_prediction_rows_shift_time_and_move_to_the_box_centre() -> None:
+    steps = [3, 4, 5, 6]
+    xy = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]]
+    heading = [0.5 * math.pi, 0.5 * math.pi, -1.5 * math.pi + 0.1, 0.5 * math.pi + 0.2]
+    rows = cr.prediction_rows(steps, xy, heading, dt=0.1, t0_step=4, offset=(-1.0, 0.0))
+    np.testing.assert_allclose(rows[:, 0], [0.0, 0.1, 0.2])  # the state before the ego's time dropped
+    # a rear-axle origin 1 m behind the centre: the centre is 1 m "behind" along heading π/2 … i.e. at y = −1
+    np.testing.assert_allclose(rows[0, 1:3], [1.0, -1.0], atol=1e-12)
+    np.testing.assert_allclose(rows[:, 3], [0.5 * math.pi, 0.5 * math.pi + 0.1, 0.5 * math.pi + 0.2])
+
+
+def test_constant_velocity_rows() -> None:
+    rows = cr.constant_velocity_rows(1.0, 2.0, [5.0, 5.0], 0.0, 10.0, 0.25)
+    np.testing.assert_allclose(rows[:, 0], [1.0, 1.25, 1.5, 1.75, 2.0])
+    np.testing.assert_allclose(rows[:, 1], [5.0, 7.5, 10.0, 12.5, 15.0])
+    np.testing.assert_allclose(rows[:, 2], 5.0)
+
+
+@pytest.mark.parametrize(
+    ("ego", "goal", "expected"),
+    [
+        (6.37, None, 6.37),
+        (2.876, None, 5.0),
+        (0.0, (8.5611, 14.5611), 11.56),
+        (5.635, (-2.37, 10.63), 5.63),
+        (1.5, (0.0, 0.0), 5.0),
+    ],
+)
+def test_target_speed_matches_the_shared_requests(
+    ego: float, goal: tuple[float, float] | None, expected: float
+) -> None:
+    assert cr.target_speed(ego, goal) == expected
+
+
+# --------------------------------------------------------------------------------------------------
+# JSON inputs
+# --------------------------------------------------------------------------------------------------
+
+
+def test_a_reduced_scenario_becomes_a_valid_request_with_real_end_widths() -> None:
+    reduced = {
+        "name": "tiny",
+        "reference_line": [[float(x), 0.0] for x in range(21)],
+        "left_width": [0.0] + [1.75] * 19 + [0.0],
+        "right_width": [1.75] * 21,
+        "obstacles": [
+            {"id": 7, "kind": "dynamic", "type": "car", "length": 4.0, "width": 1.8,
+             "polygon": [[0, 0], [1, 0], [1, 1]],
+             "trajectory": [{"t": 0.0, "x": 15.0, "y": 0.0, "heading": 3.1, "speed": 2.0},
+                            {"t": 0.1, "x": 14.8, "y": 0.0, "heading": 3.1, "speed": 2.0}]},
+            {"id": 8, "kind": "static", "type": "parkedVehicle", "length": None, "width": None,
+             "polygon": [[8.0, 1.0], [10.0, 1.0], [10.0, 1.7], [8.0, 1.7]], "trajectory": None},
+        ],
+        "ego": {"x": 2.0, "y": 0.0, "heading": -2 * math.pi, "speed": 3.0, "time_step": 0},
+        "goal": {"states": [{"velocity": [4.0, 8.0]}], "s_goal": 17.5},
+    }  # fmt: skip
+    conv = cr.request_from_reduced(reduced)
+    req = PlanningRequest.model_validate(conv.request)
+    assert req.lane.left_width[0] == 1.75 and req.lane.left_width[-1] == 1.75
+    assert req.ego.heading == pytest.approx(0.0, abs=1e-12)
+    assert req.options.target_speed == 6.0
+    assert [o.id for o in req.obstacles] == ["7", "8"]
+    assert conv.goal["s_min"] == 17.5
+    assert plan(problem_from_json(conv.request)).status in ("ok", "stopped", "fallback")
+
+
+def test_a_request_json_takes_its_goal_from_the_index() -> None:
+    conv = cr.load(DATA / "ZAM_Over-1_1.json")
+    index = {e["name"]: e for e in json.loads((DATA / "index.json").read_text())}
+    assert conv.goal["s_min"] == index["ZAM_Over-1_1"]["goal"]["s_goal"]
+    assert conv.request == json.loads((DATA / "ZAM_Over-1_1.json").read_text())
+    assert conv.sim_goal().s_min == conv.goal["s_min"]
+
+
+def test_unknown_json_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "x.json"
+    path.write_text('{"hello": 1}')
+    with pytest.raises(cr.CommonRoadError):
+        cr.load(path)
+    with pytest.raises(cr.CommonRoadError, match="no such file"):
+        cr.load(tmp_path / "missing.xml")
+
+
+def test_the_command_runs_a_request_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code = cli_main(["commonroad", str(DATA / "ZAM_Over-1_1.json"), "--duration", "0.5", "--quiet",
+                     "--no-gif", "--out", str(tmp_path)])  # fmt: skip
+    assert code == 0
+    assert "ZAM_Over-1_1" in capsys.readouterr().out
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["goal"]["s_min"] == pytest.approx(67.77)
+    assert metrics["metrics"]["steps"] == 5
+
+
+def test_the_command_reports_a_missing_file(capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli_main(["commonroad", "no/such/file.xml", "--quiet"]) == 2
+    assert "no such file" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------------------------------
+# CommonRoad XML (the optional extra `commonroad`)
+# --------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["C-DEU_B471-1_3_T-1", "DEU_Moabit-4_1_T-1"])
+def test_xml_conversion_is_a_valid_request_close_to_the_shared_one(name: str) -> None:
+    pytest.importorskip("commonroad")
+    conv = cr.load(DATA / f"{name}.xml")
+    req = PlanningRequest.model_validate(conv.request)
+    shared = json.loads((DATA / f"{name}.json").read_text())
+    # same obstacles, the same recorded motion
+    assert sorted(o["id"] for o in conv.request["obstacles"]) == sorted(o["id"] for o in shared["obstacles"])
+    ours = {o["id"]: o for o in conv.request["obstacles"]}
+    for o in shared["obstacles"]:
+        if "prediction" in o:
+            assert ours[o["id"]]["prediction"] == o["prediction"]
+            assert (ours[o["id"]]["length"], ours[o["id"]]["width"]) == (o["length"], o["width"])
+    assert (
+        conv.request["ego"]["x"] == shared["ego"]["x"]
+        and conv.request["ego"]["speed"] == shared["ego"]["speed"]
+    )
+    assert conv.request["options"] == shared["options"]
+    # a lane everywhere, the ends included (the shared conversion has 0 at an end)
+    widths = np.array([req.lane.left_width, req.lane.right_width])
+    assert widths.min() > 1.0
+    # the route starts BEHIND_EGO behind the ego, or where the map does (Moabit: 7 m)
+    assert 5.0 < conv.info["s_ego"] < cr.BEHIND_EGO + 0.5
+    result = plan(problem_from_json(conv.request))
+    assert result.status in ("ok", "stopped")
+
+
+def test_xml_goal_region_becomes_an_arc_length() -> None:
+    pytest.importorskip("commonroad")
+    conv = cr.load(DATA / "C-DEU_B471-1_3_T-1.xml")
+    index = {e["name"]: e for e in json.loads((DATA / "index.json").read_text())}
+    # the shared converter's s_goal, measured on a reference starting at another point
+    shared_s = index["C-DEU_B471-1_3_T-1"]["goal"]["s_goal"] - 10.45 + conv.info["s_ego"]
+    assert conv.goal["s_min"] == pytest.approx(shared_s, abs=5.0)
+    assert conv.goal["time"] == [0.0, 5.0]
+    survival = cr.load(DATA / "DEU_Moabit-4_1_T-1.xml")
+    assert survival.goal["s_min"] is None and survival.goal["time"] == [3.3, 3.3]
+
+
+def test_the_command_converts_and_drives_an_xml(tmp_path: Path) -> None:
+    pytest.importorskip("commonroad")
+    code = cli_main(["commonroad", str(DATA / "C-DEU_B471-1_3_T-1.xml"), "--duration", "0.3", "--quiet",
+                     "--no-gif", "--out", str(tmp_path)])  # fmt: skip
+    assert code == 0
+    request = json.loads((tmp_path / "request.json").read_text())
+    PlanningRequest.model_validate(request)
+    info = json.loads((tmp_path / "conversion.json").read_text())
+    assert info["info"]["route_lanelet_ids"] == [38807]
+
+
+def test_xml_without_the_extra_says_how_to_install_it(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setitem(sys.modules, "commonroad", None)  # as if commonroad-io were not installed
+    with pytest.raises(cr.CommonRoadError, match=r"kappa-planner\[commonroad\]"):
+        cr.load(DATA / "C-DEU_B471-1_3_T-1.xml")
+    assert cli_main(["commonroad", str(DATA / "C-DEU_B471-1_3_T-1.xml"), "--quiet"]) == 2
+    assert "commonroad-io" in capsys.readouterr().err

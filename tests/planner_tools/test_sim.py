@@ -1,0 +1,308 @@
+"""Closed-loop simulator: the vehicle model, the tracker, moving obstacles, and whole runs."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import planner_tools.sim as sim
+from planner.collision import prediction_at
+from planner.errors import InvalidInputError, PlannerError
+from planner.problem import (
+    CircleObstacle,
+    DynamicObstacle,
+    Ego,
+    Lane,
+    Options,
+    PlanningProblem,
+    Vehicle,
+)
+from planner.roads import demo_problem, straight, u_turn
+from planner.trajectory import Trajectory
+from planner_tools.sim import (
+    BicycleModel,
+    Goal,
+    PlanPath,
+    TrackerGains,
+    VehicleState,
+    advance,
+    initial_state,
+    problem_at,
+    shift_obstacle,
+    simulate,
+    step_exact,
+    track,
+)
+
+MODEL = BicycleModel(wheelbase=2.7, rear_to_centre=1.35, max_steering=0.6)
+
+
+def _start(speed: float, steering: float = 0.0, model: BicycleModel = MODEL) -> VehicleState:
+    beta = model.slip_angle(steering)
+    return VehicleState(0.0, 0.0, 0.0, -beta, steering, speed, 0.0, 0.0, model.curvature(steering))
+
+
+# --------------------------------------------------------------------------------------------------
+# Vehicle model
+# --------------------------------------------------------------------------------------------------
+
+
+def test_bicycle_model_runs_exactly_on_a_circle() -> None:
+    steering, speed, h = 0.2, 5.0, 0.01
+    state = _start(speed, steering)
+    states = [state]
+    for _ in range(300):  # 3 s: more than half a turn
+        state = step_exact(MODEL, state, 0.0, steering, h)
+        states.append(state)
+    # independently: the centre turns about the instantaneous centre of rotation on the rear axle's
+    # line, a distance ℓ/tan δ from the rear axle
+    r_rear = MODEL.wheelbase / math.tan(steering)
+    radius = math.hypot(r_rear, MODEL.rear_to_centre)
+    centre = np.array([0.0, radius])  # starting at the origin, travelling along +x, turning left
+    t = np.array([st.t for st in states])
+    xy = np.array([[st.x, st.y] for st in states])
+    phi = speed * t / radius
+    expected = np.column_stack((radius * np.sin(phi), radius * (1.0 - np.cos(phi))))
+    np.testing.assert_allclose(np.hypot(*(xy - centre).T), radius, atol=1e-9)
+    np.testing.assert_allclose(xy, expected, atol=1e-9)
+    np.testing.assert_allclose([st.course for st in states], phi, atol=1e-9)
+    # the rear axle moves along the body's yaw, on its own circle of radius ℓ/tan δ
+    yaw = np.array([st.yaw for st in states])
+    rear = xy - MODEL.rear_to_centre * np.column_stack((np.cos(yaw), np.sin(yaw)))
+    np.testing.assert_allclose(np.hypot(*(rear - centre).T), r_rear, atol=1e-9)
+    assert states[-1].curvature == pytest.approx(1.0 / radius, rel=1e-12)
+
+
+def test_bicycle_model_accelerates_along_the_arc_and_stops_without_reversing() -> None:
+    steering = -0.1
+    state = _start(4.0, steering)
+    radius = 1.0 / abs(MODEL.curvature(steering))
+    for _ in range(100):
+        state = step_exact(MODEL, state, 1.0, steering, 0.01)
+    arc = 4.0 * 1.0 + 0.5 * 1.0 * 1.0**2
+    assert state.speed == pytest.approx(5.0)
+    assert state.course == pytest.approx(-arc / radius)
+    assert math.hypot(state.x, state.y + radius) == pytest.approx(radius)  # right turn: centre (0, −R)
+    braking = _start(3.0)
+    for _ in range(200):
+        braking = step_exact(MODEL, braking, -2.0, 0.0, 0.01)
+    assert braking.speed == 0.0 and braking.acceleration == 0.0
+    assert braking.x == pytest.approx(3.0**2 / (2 * 2.0))
+
+
+def test_steering_follows_commands_within_its_rate_and_range() -> None:
+    vehicle = Vehicle()
+    model = BicycleModel.for_vehicle(vehicle)
+    assert model.wheelbase == pytest.approx(0.6 * vehicle.length)
+    assert model.curvature(model.max_steering) == pytest.approx(vehicle.max_curvature)
+    assert model.curvature(model.steering_for(0.1)) == pytest.approx(0.1)
+    state = initial_state(model, Ego(0.0, 0.0, 0.0, speed=5.0), vehicle)
+    nxt = advance(model, vehicle, state, 100.0, 1.0, 0.01)
+    assert nxt.steering == pytest.approx(model.max_steering_rate * 0.01)
+    assert nxt.speed == pytest.approx(5.0 + vehicle.max_acceleration * 0.01)
+    for _ in range(300):
+        nxt = advance(model, vehicle, nxt, 0.0, 1.0, 0.01)
+    assert nxt.curvature == pytest.approx(vehicle.max_curvature)
+
+
+def test_centre_on_the_rear_axle_has_no_slip_angle() -> None:
+    model = BicycleModel.for_vehicle(Vehicle(), rear_to_centre=0.0)
+    assert model.slip_angle(0.3) == 0.0
+    assert model.curvature(0.3) == pytest.approx(math.tan(0.3) / model.wheelbase)
+    assert model.curvature(model.steering_for(0.15)) == pytest.approx(0.15)
+
+
+# --------------------------------------------------------------------------------------------------
+# Tracker
+# --------------------------------------------------------------------------------------------------
+
+
+def _plan(x: np.ndarray, y: np.ndarray, heading: np.ndarray, curvature: np.ndarray, v: float) -> Trajectory:
+    t = np.arange(x.shape[0]) * 0.1
+    zeros = np.zeros_like(t)
+    return Trajectory(t, x, y, heading, curvature, np.full_like(t, v), zeros, zeros, zeros)
+
+
+def _follow(plan: Trajectory, state: VehicleState, seconds: float) -> tuple[VehicleState, float]:
+    """Track one plan (no replanning) for ``seconds``; the last lateral error."""
+    vehicle = Vehicle()
+    path = PlanPath.of(plan)
+    h = 0.01
+    out = track(path, 0.0, state, TrackerGains())
+    for i in range(round(seconds / h)):
+        out = track(path, i * h, state, TrackerGains())
+        state = advance(MODEL, vehicle, state, out.acceleration, out.curvature, h)
+    return state, out.lateral_error
+
+
+def test_tracker_pulls_onto_a_straight() -> None:
+    t = np.arange(121) * 0.1
+    plan = _plan(5.0 * t, np.zeros_like(t), np.zeros_like(t), np.zeros_like(t), 5.0)
+    start = replace(_start(4.0), y=0.6, yaw=0.05, course=0.05)
+    state, error = _follow(plan, start, 8.0)
+    assert abs(error) < 0.02 and abs(state.y) < 0.02
+    assert abs(state.course) < 0.01
+    assert state.speed == pytest.approx(5.0, abs=0.05)
+    assert state.x == pytest.approx(40.0, abs=0.5)  # the station error is taken out too
+
+
+def test_tracker_follows_an_arc() -> None:
+    radius, speed = 12.0, 4.0
+    t = np.arange(81) * 0.1
+    phi = speed * t / radius
+    plan = _plan(radius * np.sin(phi), radius * (1 - np.cos(phi)), phi, np.full_like(t, 1 / radius), speed)
+    steering = MODEL.steering_for(1 / radius)
+    state, error = _follow(plan, _start(speed, steering), 6.0)
+    assert abs(error) < 0.01
+    assert math.hypot(state.x, state.y - radius) == pytest.approx(radius, abs=0.01)
+    assert state.course == pytest.approx(speed * 6.0 / radius, abs=0.01)
+
+
+# --------------------------------------------------------------------------------------------------
+# Obstacles, goals
+# --------------------------------------------------------------------------------------------------
+
+MOVER = DynamicObstacle(
+    "car",
+    4.0,
+    1.8,
+    np.array([[0.0, 0.0, 0.0, 0.0], [1.0, 5.0, 0.0, 0.1], [2.0, 10.0, 1.0, 0.2], [3.0, 15.0, 2.0, 0.3]]),
+)
+
+
+def test_predictions_are_shifted_to_the_sim_time() -> None:
+    shifted = shift_obstacle(MOVER, 1.5)
+    assert isinstance(shifted, DynamicObstacle)
+    np.testing.assert_allclose(shifted.prediction[:, 0], [0.0, 0.5, 1.5])
+    np.testing.assert_allclose(shifted.prediction[0, 1:], [7.5, 0.5, 0.15])
+    tau = np.linspace(0.0, 4.0, 41)
+    np.testing.assert_allclose(prediction_at(shifted, tau), prediction_at(MOVER, 1.5 + tau), atol=1e-12)
+    gone = shift_obstacle(MOVER, 5.0)
+    assert isinstance(gone, DynamicObstacle)
+    np.testing.assert_allclose(gone.prediction, [[0.0, 15.0, 2.0, 0.3]])
+    exact = shift_obstacle(MOVER, 2.0)
+    assert isinstance(exact, DynamicObstacle)
+    np.testing.assert_allclose(exact.prediction[:, 0], [0.0, 1.0])
+    cone = CircleObstacle("cone", np.array([1.0, 2.0]), 0.5)
+    assert shift_obstacle(cone, 3.0) is cone
+
+
+def test_problem_at_uses_the_vehicle_and_shifted_predictions() -> None:
+    problem = PlanningProblem(straight(60.0), Lane(3.5, 3.5), Ego(0.0, 0.0, 0.0), (MOVER,))
+    state = replace(_start(3.0), t=1.0, x=2.0, y=0.1, course=0.02)
+    asked = problem_at(problem, state)
+    assert asked.ego == Ego(2.0, 0.1, 0.02, 3.0, 0.0, state.curvature)
+    moved = asked.obstacles[0]
+    assert isinstance(moved, DynamicObstacle)
+    np.testing.assert_allclose(moved.prediction[0], [0.0, 5.0, 0.0, 0.1])
+
+
+def test_goal_criteria() -> None:
+    with pytest.raises(InvalidInputError):
+        Goal()
+    with pytest.raises(InvalidInputError):
+        Goal(position=np.array([0.0, 0.0]))
+    square = Goal(polygon=np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]]))
+    assert square.reached(1.0, 1.0, 0.0) and not square.reached(3.0, 1.0, 0.0)
+    both = Goal(s_min=10.0, position=np.array([0.0, 0.0]), radius=1.0)
+    assert both.reached(0.5, 0.0, 11.0)
+    assert not both.reached(0.5, 0.0, 9.0) and not both.reached(2.0, 0.0, 11.0)
+
+
+# --------------------------------------------------------------------------------------------------
+# Whole runs
+# --------------------------------------------------------------------------------------------------
+
+SHORT_ROAD = u_turn(radius=8.0, leg=12.0, step=2.0)
+
+
+def _short_demo(generator: str = "transf_kappa") -> PlanningProblem:
+    """The demo U-turn (same radius, lane and cone) with 12 m legs, the ego 6 m before the turn."""
+    problem = demo_problem()
+    return replace(
+        problem,
+        reference_line=SHORT_ROAD,
+        ego=Ego(x=-6.0, y=0.0, heading=0.0, speed=5.0),
+        options=replace(problem.options, generator=generator),  # type: ignore[arg-type]
+    )
+
+
+def test_transf_kappa_drives_the_u_turn() -> None:
+    """The default vehicle does not slip at its centre: its body turns with the path, as the planner's
+    footprint assumes."""
+    problem = _short_demo()
+    result = simulate(problem)
+    assert result.model == BicycleModel.for_vehicle(problem.vehicle)
+    assert result.model.rear_to_centre == 0.0
+    m = result.metrics
+    assert m.termination == "goal" and m.goal_reached
+    assert m.collisions == 0 and m.min_clearance is not None and m.min_clearance > 0.0
+    assert m.backward_steps == 0 and m.fold_steps == 0
+    assert m.folded_candidates["cycles"] == 0
+    assert m.final_s >= result.goal.s_min  # type: ignore[operator]
+    assert m.max_tracking_error < 0.05
+    assert m.max_lateral_acceleration <= problem.vehicle.max_lateral_acceleration + 0.1
+    assert sum(m.status_counts.values()) == m.steps == len(result.steps)
+    # the cycles chain up: every plan starts where the vehicle was (to the lateral QP's tolerance on its
+    # initial-state rows, micrometres)
+    for st in result.steps:
+        assert st.trajectory is not None
+        assert math.hypot(st.trajectory.x[0] - st.state.x, st.trajectory.y[0] - st.state.y) < 1e-4
+    json.dumps(m.to_dict())
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="the planner checks a footprint turned with the path; a car referenced midway between its "
+    "axles is yawed by the slip angle (≈ 10° here), which swings its outer front corner ~0.4 m into the cone",
+)
+def test_a_car_referenced_midway_between_its_axles_drives_the_demo_u_turn() -> None:
+    problem = demo_problem()
+    result = simulate(problem, model=BicycleModel.for_vehicle(problem.vehicle, centre_midway=True))
+    assert result.metrics.termination == "goal"
+    assert result.metrics.collisions == 0
+
+
+def test_a_car_from_behind_is_a_collision_and_ends_the_run() -> None:
+    """The planner leaves a faster car from behind to its driver; the simulator still scores the hit."""
+    rammer = DynamicObstacle("rammer", 4.5, 1.8, np.array([[0.0, -2.0, 0.0, 0.0], [10.0, 148.0, 0.0, 0.0]]))
+    problem = PlanningProblem(
+        straight(200.0, step=5.0),
+        Lane(3.5, 3.5),
+        Ego(10.0, 0.0, 0.0, speed=5.0),
+        (rammer,),
+        Vehicle(),
+        Options(target_speed=5.0),
+    )
+    result = simulate(problem, duration=5.0)
+    m = result.metrics
+    assert m.termination == "collision" and not m.goal_reached
+    assert m.collided_with == ("rammer",) and m.collisions >= 1 and m.min_clearance == 0.0
+    assert m.sim_time < 2.0  # 15 m/s against 5 m/s from 7.5 m behind: ~0.75 s
+    assert result.steps[-1].obstacles[0][0] == "rammer"
+
+
+def test_a_planning_error_brakes_instead_of_crashing(monkeypatch: pytest.MonkeyPatch) -> None:
+    def failing(problem: PlanningProblem) -> None:
+        raise PlannerError("no luck")
+
+    monkeypatch.setattr(sim, "plan", failing)
+    problem = PlanningProblem(straight(100.0), Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, speed=6.0))
+    result = simulate(problem, duration=0.5)
+    assert [st.status for st in result.steps] == ["error"] * 5
+    assert result.steps[0].message == "no luck"
+    assert result.metrics.status_counts["error"] == 5
+    assert result.motion.v[-1] == pytest.approx(6.0 - problem.vehicle.max_deceleration * 0.5)
+    assert result.metrics.termination == "timeout"
+
+
+def test_bad_settings_are_domain_errors() -> None:
+    problem = PlanningProblem(straight(50.0), Lane(3.5, 3.5), Ego(0.0, 0.0, 0.0))
+    with pytest.raises(InvalidInputError):
+        simulate(problem, duration=0.0)
+    with pytest.raises(InvalidInputError):
+        simulate(problem, replan_period=-0.1)

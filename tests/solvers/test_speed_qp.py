@@ -1,0 +1,99 @@
+"""The QP of one SQP iteration: the buffered evaluation equals CasADi's call, the named columns are the
+state and inputs they say, HPIPM's flags are named."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from solvers.speed_problem import PIECES, SpeedProblem
+from solvers.speed_qp import (
+    COL_A,
+    COL_JERK,
+    COL_S,
+    COL_SIGMA_S,
+    COL_V,
+    P_END_CURVATURE,
+    P_V_HAT,
+    P_V_TARGET,
+    ROW_LIMIT,
+    HpipmSettings,
+    HpipmStatus,
+    SpeedQP,
+    build_speed_qp,
+    local_model,
+)
+from tests.solvers.speed_cases import make_problem
+
+_LIMIT = {"limit_s": [0, 30, 40, 60, 70, 1000], "limit_v": [20, 20, 8, 8, 20, 20]}
+
+
+def _qp(problem: SpeedProblem, settings: HpipmSettings | None = None) -> SpeedQP:
+    qp = build_speed_qp(problem.steps, problem.dt, problem.weights, problem.tables.has_lower, settings)
+    qp.set_bounds(problem)
+    qp.p[P_V_TARGET] = problem.v_target
+    return qp
+
+
+def _guess(problem: SpeedProblem) -> np.ndarray:
+    """``s − s0`` of cruising at ``v0``, held at the stop (a point to linearise at)."""
+    return np.minimum(problem.v0 * problem.t, problem.s_stop - problem.s0)
+
+
+@pytest.mark.parametrize("lower", [False, True])
+def test_qps_on_bound_arrays_agree_with_casadis_ordinary_call(lower: bool) -> None:
+    """One QP after another through the buffer, as the SQP does, against CasADi's call with the same
+    numbers (a buffer evaluated again can carry state over: CasADi 3.8.0 summed the solutions); with a
+    lower bound, the QP with its slack."""
+    s_lower = -10.0 + 14.0 * np.arange(81) * 0.1 if lower else None
+    problem = make_problem(v0=15.0, s_stop=120.0, s_lower=s_lower, **_LIMIT)
+    qp = _qp(problem)
+    s_bar, v_end = _guess(problem), problem.v0
+    for shift, curvature in ((0.0, 0.0), (5.0, 0.3), (0.0, 0.0)):
+        e, d, _, _ = local_model(problem, s_bar + shift, v_end)
+        qp.limit_rows[...] = e
+        qp.slopes[...] = d
+        qp.p[P_END_CURVATURE], qp.p[P_V_HAT] = curvature, v_end
+        flag, iterations = qp.solve()
+        assert qp.x.size == (7 if lower else 6) * problem.steps + 3
+        inputs = {name: getattr(qp, name).copy() for name in ("p", "lbx", "ubx", "lbg", "ubg")}
+        reference = qp.function(**inputs)
+        stats = qp.function.stats()
+        assert (flag, iterations) == (stats["return_status"], stats["iter_count"])
+        assert flag == HpipmStatus.SUCCESS
+        assert np.array_equal(qp.x, reference["x"].full().ravel())
+        assert np.array_equal(qp.lam_g, reference["lam_g"].full().ravel())
+
+
+def test_named_columns_and_rows_are_what_they_say() -> None:
+    problem = make_problem(v0=15.0, s_stop=60.0, **_LIMIT)
+    qp = _qp(problem)
+    e, d, _, _ = local_model(problem, _guess(problem), problem.v0)
+    qp.limit_rows[...] = e
+    qp.slopes[...] = d
+    qp.p[P_V_HAT] = problem.v0
+    flag, _ = qp.solve()
+    assert flag == HpipmStatus.SUCCESS
+    n, dt = problem.steps, problem.dt
+    stages = np.vstack([qp.x[: qp.width * n].reshape(n, qp.width), np.append(qp.x[-3:], [0.0] * 3)])
+    s, v, a, j = (stages[:, col] for col in (COL_S, COL_V, COL_A, COL_JERK))
+    assert (s[0], v[0], a[0]) == pytest.approx((0.0, problem.v0, problem.a0), abs=1e-9)
+    np.testing.assert_allclose(a[1:], a[:-1] + j[:-1] * dt, atol=1e-6)  # the dynamics, column by column
+    np.testing.assert_allclose(v[1:], v[:-1] + a[:-1] * dt + j[:-1] * dt**2 / 2, atol=1e-6)
+    np.testing.assert_allclose(
+        s[1:], s[:-1] + v[:-1] * dt + a[:-1] * dt**2 / 2 + j[:-1] * dt**3 / 6, atol=1e-6
+    )
+    assert np.max(s) <= 60.0 + np.max(stages[:, COL_SIGMA_S]) + 1e-6  # the stop, with its slack
+    np.testing.assert_array_equal(qp.jerk, j[:-1])
+    end = qp.rows * (n - 1) + ROW_LIMIT
+    np.testing.assert_array_equal(qp.end_multipliers, qp.lam_g[end : end + PIECES])
+
+
+def test_an_iteration_cap_is_hpipms_max_iter_flag() -> None:
+    problem = make_problem(v0=15.0, s_stop=60.0, **_LIMIT)
+    qp = _qp(problem, HpipmSettings(iter_max=2))
+    e, d, _, _ = local_model(problem, _guess(problem), problem.v0)
+    qp.limit_rows[...] = e
+    qp.slopes[...] = d
+    flag, iterations = qp.solve()
+    assert (flag, iterations) == (HpipmStatus.MAX_ITER, 2)
