@@ -31,7 +31,8 @@ from app.models.planning import (
     Vehicle,
 )
 from planner import problem as pp
-from planner.candidates import CandidateSet, EgoFrenet
+from planner.candidates import CandidateSet
+from planner.ego import EgoFrenet
 from planner.pipeline import PlanResult
 from planner.pipeline import Status as PlanStatus
 from planner.reference import ReferenceLine

@@ -22,7 +22,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from planner.pipeline import _Solvers, plan
+from planner.pipeline import plan
 from planner.problem import (
     CircleObstacle,
     DynamicObstacle,
@@ -34,6 +34,7 @@ from planner.problem import (
     Vehicle,
 )
 from planner.roads import demo_problem, straight
+from planner.thread_solvers import new_solvers
 from solvers.lateral_qp import LateralQPProblem, LateralQPSolver
 from solvers.speed_problem import SpeedProblem
 
@@ -68,7 +69,7 @@ def bench_lateral() -> None:
 
 
 def bench_speed() -> None:
-    solver = _Solvers().speed  # configured as the pipeline configures it
+    solver = new_solvers().speed  # configured as the pipeline configures it
     limit_s = np.linspace(0.0, 150.0, 301)
     limit_v = np.where((limit_s > 40) & (limit_s < 60), 6.0, 15.0)
     t = np.arange(81) * 0.1

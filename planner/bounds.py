@@ -22,9 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.candidates import lane_bounds
 from planner.collision import FrenetBoxes, box_corners
 from planner.frenet import to_cartesian, to_frenet
+from planner.lane import lane_bounds
 from planner.problem import Lane, Vehicle
 from planner.reference import FloatArray, ReferenceLine, widths_at
 

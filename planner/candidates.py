@@ -32,10 +32,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.ego import EgoFrenet, check_ego_on_road, ego_frenet
 from planner.errors import InvalidInputError
 from planner.frenet import offset_basis, to_frenet
+from planner.lane import LaneBounds, lane_bounds
 from planner.problem import Ego, Generator, Lane, Options, Vehicle
-from planner.reference import FloatArray, ReferenceLine, widths_at
+from planner.reference import FloatArray, ReferenceLine
 
 #: fraction of the largest empty tangent disc trusted to round-trip without checking
 _LIMIT_SAFETY = 0.97
@@ -48,32 +50,8 @@ BRAKE_DELAY = 1.5
 #: longest path the candidates cover [m]: a longer braking distance (``v²/a`` of a weak brake: 10³⁰¹ m
 #: for 10⁻³⁰⁰ m/s²) or minimum length is capped here, and the speed profile keeps within the path
 MAX_PATH_LENGTH = 20_000.0
-#: farthest the ego may be outside the lane, or before the reference's start [m]
-MAX_EGO_OFF_ROAD = 10.0
-#: largest heading difference between ego and reference accepted [rad]
-MAX_EGO_HEADING_ERROR = np.pi / 2 - 1e-3
 #: round-trip tolerance separating consistent points from those TransF-κ attributes elsewhere [m]
 _CONSISTENCY_TOLERANCE = 1e-6
-
-
-@dataclass(frozen=True)
-class EgoFrenet:
-    """The ego in the Frenet frame: ``s`` [m], ``d`` [m], ``d′ = dd/ds`` [-], ``d″`` [1/m]."""
-
-    s: float
-    d: float
-    dd: float
-    ddd: float
-    heading_error: float
-
-
-@dataclass(frozen=True)
-class LaneBounds:
-    """Usable lateral bounds of the vehicle's centre at arc lengths ``s`` [m]: ``lower ≤ d ≤ upper``."""
-
-    s: FloatArray
-    lower: FloatArray
-    upper: FloatArray
 
 
 @dataclass(frozen=True)
@@ -111,80 +89,6 @@ class CandidateSet:
         """``(s, d, xy)`` of the points kept in candidate ``i``."""
         keep = self.valid[i]
         return self.s[i, keep], self.d[i, keep], self.xy[i, keep]
-
-
-def ego_frenet(ref: ReferenceLine, ego: Ego, *, max_curvature: float = np.inf) -> EgoFrenet:
-    """The ego's Frenet state by TransF-κ.
-
-    With heading error ``Δθ = θ − θ_r(s)``: ``d′ = (1 − κd)·tan Δθ`` and, for the ego's path
-    curvature ``κ_x``, ``d″ = −(κ′d + κd′)·tan Δθ + (1 − κd)/cos²Δθ · (κ_x(1 − κd)/cos Δθ − κ)``.
-    When ``κ_x`` is not given, the ego is taken to follow the road's curvature at its offset,
-    ``κ/(1 − κd)``, limited to ``±max_curvature`` [1/m] (what it can be driving at its speed).
-    Nothing is refused here: :func:`check_ego_on_road` judges the position and then the heading.
-    """
-    fr = to_frenet(ref, [[ego.x, ego.y]])
-    s, d = float(fr.s[0]), float(fr.d[0])
-    err = float(np.angle(np.exp(1j * (ego.heading - ref.heading_at(s)))))
-    kappa = float(ref.kappa_at(s))
-    one = 1.0 - kappa * d
-    dd = one * np.tan(err)
-    if ego.curvature is not None:
-        curvature = ego.curvature
-    else:
-        following = kappa / one if one > 1e-6 else 0.0
-        curvature = float(np.clip(following, -max_curvature, max_curvature))
-    dk = (
-        float(np.gradient(ref.kappa, ref.s)[np.clip(int(s / ref.spacing), 0, ref.size - 1)])
-        if ref.size > 2
-        else 0.0
-    )
-    ddd = -(dk * d + kappa * dd) * np.tan(err) + one / np.cos(err) ** 2 * (
-        curvature * one / np.cos(err) - kappa
-    )
-    return EgoFrenet(s=s, d=d, dd=float(dd), ddd=float(ddd), heading_error=err)
-
-
-def check_ego_on_road(ref: ReferenceLine, lane: Lane, start: EgoFrenet) -> None:
-    """Refuse an ego farther than :data:`MAX_EGO_OFF_ROAD` [m] outside the lane or before the start, then
-    one heading more than :data:`MAX_EGO_HEADING_ERROR` [rad] away from the reference's direction."""
-    left = float(widths_at(lane.left_width, ref, start.s, field_name="lane.left_width"))
-    right = float(widths_at(lane.right_width, ref, start.s, field_name="lane.right_width"))
-    outside = max(start.d - left, -right - start.d, 0.0)
-    if outside > MAX_EGO_OFF_ROAD:
-        raise InvalidInputError(
-            f"is {outside:.1f} m outside the lane (at most {MAX_EGO_OFF_ROAD:.0f} m is accepted)", field="ego"
-        )
-    if start.s < -MAX_EGO_OFF_ROAD:
-        raise InvalidInputError(
-            f"is {-start.s:.1f} m before the start of the reference line "
-            f"(at most {MAX_EGO_OFF_ROAD:.0f} m is accepted)",
-            field="ego",
-        )
-    # the heading only once the position is known to be near the road (far off, the nearest point's
-    # direction says nothing)
-    if abs(start.heading_error) > MAX_EGO_HEADING_ERROR:
-        raise InvalidInputError(
-            f"points {np.degrees(start.heading_error):.0f}° away from the reference line's driving direction",
-            field="ego.heading",
-        )
-
-
-def lane_bounds(
-    ref: ReferenceLine, lane: Lane, s: FloatArray, *, half_width: float, margin: float
-) -> LaneBounds:
-    """Bounds of the vehicle centre: lane widths shrunk by ``half_width + margin`` [m] on each side.
-
-    Where the lane is narrower than that, both bounds meet in the middle of the lane.
-    """
-    left = widths_at(lane.left_width, ref, s, field_name="lane.left_width")
-    right = widths_at(lane.right_width, ref, s, field_name="lane.right_width")
-    upper = left - half_width - margin
-    lower = -(right - half_width - margin)
-    squeezed = lower > upper
-    mid = 0.5 * (left - right)
-    upper = np.where(squeezed, mid, upper)
-    lower = np.where(squeezed, mid, lower)
-    return LaneBounds(s=s, lower=lower, upper=upper)
 
 
 def path_length(ego: Ego, vehicle: Vehicle, options: Options) -> float:
@@ -237,9 +141,12 @@ def generate_candidates(
     *,
     start: EgoFrenet | None = None,
 ) -> CandidateSet:
-    """Generate ``options.num_candidates`` candidates of ``options.num_points`` points.
+    """Generate ``options.num_candidates`` candidates of ``options.num_points`` points from ``start``.
 
-    Raises :class:`InvalidInputError` when the ego is at or past the end of the reference line.
+    A plan starts them from :func:`planner.ego.start_state`; without ``start``, the ego's state is
+    :func:`planner.ego.ego_frenet`'s, without the plan's curvature clip. Raises
+    :class:`InvalidInputError` when the ego is off the road (:func:`planner.ego.check_ego_on_road`) or
+    at or past the end of the reference line.
     """
     start = ego_frenet(ref, ego) if start is None else start
     check_ego_on_road(ref, lane, start)

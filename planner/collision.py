@@ -187,6 +187,22 @@ def box_hits(
         return np.zeros(np.shape(s), dtype=bool)
     s_, d_ = np.asarray(s)[..., None], np.asarray(d)[..., None]
     hs, hd = np.asarray(half_s)[..., None], np.asarray(half_d)[..., None]
-    hit = (s_ + hs >= boxes.s_min) & (s_ - hs <= boxes.s_max)
-    hit &= (d_ + hd >= boxes.d_min) & (d_ - hd <= boxes.d_max)
+    hit = boxes_overlap(s_, d_, hs, hd, boxes.s_min, boxes.s_max, boxes.d_min, boxes.d_max)
     return np.asarray(hit.any(axis=-1))
+
+
+def boxes_overlap(
+    s: FloatArray,
+    d: FloatArray,
+    half_s: FloatArray,
+    half_d: FloatArray,
+    s_min: FloatArray,
+    s_max: FloatArray,
+    d_min: FloatArray,
+    d_max: FloatArray,
+) -> NDArray[np.bool_]:
+    """Whether footprint boxes ``[s ± half_s] × [d ± half_d]`` overlap obstacle boxes
+    ``[s_min, s_max] × [d_min, d_max]`` [m] (touching counts), elementwise over the broadcast shapes."""
+    hit = (s + half_s >= s_min) & (s - half_s <= s_max)
+    hit &= (d + half_d >= d_min) & (d - half_d <= d_max)
+    return np.asarray(hit)

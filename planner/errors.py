@@ -26,7 +26,3 @@ class InvalidInputError(PlannerError):
 
 class InvalidReferenceError(InvalidInputError):
     """The reference line cannot be turned into a Frenet frame (too few points, non-finite, …)."""
-
-
-class PlanningError(PlannerError):
-    """Planning could not produce an answer although the input was valid (→ typed status)."""

@@ -262,7 +262,9 @@ class Options:
         generator: ``naive`` (Algorithm 4) or ``transf_kappa`` (Algorithm 5).
         seed: seed of the candidates' random end offsets and lengths.
         return_candidates: include the candidates in the answer.
-        lateral_margin: clearance kept from the lane edges and obstacles [m].
+        lateral_margin: clearance [m] the lateral bounds keep from the lane edges and the static
+            obstacles, and the candidates from the lane edges (candidate scoring and the moving
+            obstacles' bounds keep ``PlannerConfig.obstacle_margin``: see :mod:`planner.config`).
         min_path_length: shortest path the candidates cover [m].
         time_budget_ms: wall-clock budget of one plan [ms]; a stage that ends past it makes the answer
             a braking ``fallback`` saying so. ``None``: no budget.

@@ -35,14 +35,8 @@ class Path:
 
     @property
     def length(self) -> float:
+        """Arc length of the path [m]."""
         return float(self.sigma[-1])
-
-    def truncated(self, n: int) -> Path:
-        """The first ``n`` knots."""
-        return Path(*(np.asarray(getattr(self, f))[:n] for f in _PATH_FIELDS))
-
-
-_PATH_FIELDS = ("s", "d", "x", "y", "heading", "curvature", "sigma")
 
 
 def frenet_path(ref: ReferenceLine, s: FloatArray, d: FloatArray, dd: FloatArray, ddd: FloatArray) -> Path:

@@ -1,20 +1,25 @@
-"""Checks of paths against the reference: the properties Algorithm 5 guarantees and Algorithm 4 breaks.
+"""Checks of paths and trajectories: the properties Algorithm 5 guarantees and Algorithm 4 breaks, and
+every check a returned trajectory must pass, as typed :class:`Violation` records.
 
-Used by the tests, the figures and (later) the planner's own output checks.
+A violation's message (:attr:`Violation.message`) is rendered from the record; decisions (the fallback's
+ranking) read its ``kind`` and ``obstacle_id``, never the text.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from enum import StrEnum
+
 import numpy as np
 import shapely
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from shapely import LineString
 from shapely.geometry.base import BaseGeometry
 
 from planner.collision import box_corners, footprints, prediction_at
 from planner.frenet import to_frenet
 from planner.problem import DynamicObstacle, PlanningProblem
-from planner.reference import ReferenceLine, widths_at
+from planner.reference import FloatArray, ReferenceLine, widths_at
 from planner.trajectory import Trajectory
 
 
@@ -43,6 +48,100 @@ def folds_back(ref: ReferenceLine, xy: ArrayLike) -> bool:
 #: tolerances of the trajectory checks
 _GEOMETRY_TOL = 1e-3  # [m]
 _RATE_TOL = 1e-3  # relative, on limits
+#: the first point may be this far from the ego [m]
+_START_TOL = 0.05
+#: a point moves when its speed exceeds this [m/s]
+_MOVING = 0.05
+#: absolute tolerances on the curvature [1/m], lateral acceleration and acceleration [m/s²]
+_CURVATURE_TOL, _LATERAL_TOL, _ACCELERATION_TOL = 1e-4, 1e-3, 1e-3
+#: a step may differ from the mean speed × dt by this [m] and this share of it
+_STEP_ABS_TOL, _STEP_REL_TOL = 0.05, 0.05
+#: ``s`` may fall back by this [m] (rounding)
+_S_TOL = 1e-6
+#: steps shorter than this [m] are left out of the self-intersection check (a standstill)
+_STANDSTILL_STEP = 1e-3
+
+
+class ViolationKind(StrEnum):
+    """Which check a trajectory breaks."""
+
+    #: the first point is not at the ego
+    START = "start"
+    #: ``1 − κ·d ≤ 0`` somewhere (the offset is past the reference's centre of curvature)
+    KAPPA_D = "kappa_d"
+    #: ``|curvature| > max_curvature`` while moving
+    CURVATURE = "curvature"
+    #: ``v²·|curvature| > max_lateral_acceleration``
+    LATERAL_ACCELERATION = "lateral_acceleration"
+    #: acceleration outside ``[−max_deceleration, max_acceleration]``
+    ACCELERATION = "acceleration"
+    #: consecutive positions inconsistent with ``v·dt``
+    STEP = "step"
+    #: ``s`` decreases, or does not increase while moving
+    S_DECREASES = "s_decreases"
+    #: the path crosses or overlaps itself
+    SELF_INTERSECTS = "self_intersects"
+    #: the footprint leaves the lane
+    LANE = "lane"
+    #: the footprint meets a static obstacle
+    HITS_OBSTACLE = "hits_obstacle"
+    #: the footprint meets a moving obstacle at its predicted pose at the same time
+    HITS_MOVING_OBSTACLE = "hits_moving_obstacle"
+
+
+#: the kinds that are collisions; the others break a limit without hitting anything by themselves
+HITS = frozenset({ViolationKind.HITS_OBSTACLE, ViolationKind.HITS_MOVING_OBSTACLE})
+
+
+@dataclass(frozen=True)
+class Violation:
+    """One broken check of a trajectory.
+
+    Attributes:
+        kind: which check.
+        obstacle_id: the obstacle hit (the two ``HITS_*`` kinds), else None.
+        t: the first time it happens [s], None where a time means nothing (self-intersection).
+        value: the worst value where the message states one (``CURVATURE`` [1/m],
+            ``LATERAL_ACCELERATION`` [m/s²]), else None.
+    """
+
+    kind: ViolationKind
+    obstacle_id: str | None = None
+    t: float | None = None
+    value: float | None = None
+
+    @property
+    def message(self) -> str:
+        """The check in words, as answers report it."""
+        kind = self.kind
+        if kind is ViolationKind.CURVATURE:
+            return f"curvature {self.value:.3f} 1/m above max_curvature"
+        if kind is ViolationKind.LATERAL_ACCELERATION:
+            return f"lateral acceleration {self.value:.2f} m/s² above the limit"
+        if kind is ViolationKind.HITS_OBSTACLE:
+            return f"footprint hits obstacle {self.obstacle_id}"
+        if kind is ViolationKind.HITS_MOVING_OBSTACLE:
+            return f"footprint hits moving obstacle {self.obstacle_id}"
+        return _MESSAGES[kind]
+
+    def __str__(self) -> str:
+        return self.message
+
+
+_MESSAGES = {
+    ViolationKind.START: "does not start at the ego",
+    ViolationKind.KAPPA_D: "1 − κ·d ≤ 0 at some point",
+    ViolationKind.ACCELERATION: "acceleration outside the limits",
+    ViolationKind.STEP: "positions inconsistent with v·dt",
+    ViolationKind.S_DECREASES: "s does not increase while moving",
+    ViolationKind.SELF_INTERSECTS: "self-intersects",
+    ViolationKind.LANE: "footprint leaves the lane",
+}
+
+
+def _first(t: FloatArray, where: NDArray[np.bool_]) -> float:
+    """The first time [s] of ``t`` at which ``where`` holds (``where`` holds somewhere)."""
+    return float(t[int(np.argmax(where))])
 
 
 def trajectory_violations(
@@ -50,43 +149,52 @@ def trajectory_violations(
     problem: PlanningProblem,
     traj: Trajectory,
     static: list[tuple[str, BaseGeometry]],
-) -> list[str]:
-    """Every check a returned trajectory must pass; an empty list when it passes them all.
+) -> list[Violation]:
+    """Every check a returned trajectory must pass, in this order; an empty list when it passes them all.
 
-    Starts at the ego; footprint inside the lane (all four corners by TransF-κ; no further out than
-    the measured start where that is already partly outside) and clear of every
-    static obstacle and of every moving one at its predicted pose at the same time; ``1 − κ·d > 0``;
-    ``|curvature| ≤ max_curvature`` and ``v²·|curvature| ≤ max_lateral_acceleration`` while moving;
-    acceleration within the limits; consecutive positions consistent with ``v·dt``; ``s`` never
-    decreasing and strictly increasing while moving; no self-intersection.
+    Starts at the ego; ``1 − κ·d > 0``; ``|curvature| ≤ max_curvature`` while moving and
+    ``v²·|curvature| ≤ max_lateral_acceleration``; acceleration within the limits; consecutive positions
+    consistent with ``v·dt``; ``s`` never decreasing and strictly increasing while moving; no
+    self-intersection; footprint inside the lane (all four corners by TransF-κ; no further out than the
+    measured start where that is already partly outside) and clear of every static obstacle and of
+    every moving one at its predicted pose at the same time.
     """
-    vehicle, ego = problem.vehicle, problem.ego
-    out: list[str] = []
-    if np.hypot(traj.x[0] - ego.x, traj.y[0] - ego.y) > 0.05:
-        out.append("does not start at the ego")
-    moving = traj.v > 0.05
+    vehicle, ego, t = problem.vehicle, problem.ego, traj.t
+    kind = ViolationKind
+    out: list[Violation] = []
+    if np.hypot(traj.x[0] - ego.x, traj.y[0] - ego.y) > _START_TOL:
+        out.append(Violation(kind.START, t=float(t[0])))
+    moving = traj.v > _MOVING
     kappa = ref.kappa_at(traj.s)
-    if np.any(1.0 - kappa * traj.d <= 0.0):
-        out.append("1 − κ·d ≤ 0 at some point")
+    folded = 1.0 - kappa * traj.d <= 0.0
+    if np.any(folded):
+        out.append(Violation(kind.KAPPA_D, t=_first(t, folded)))
     curv = np.abs(traj.curvature)
-    if np.any(moving & (curv > vehicle.max_curvature * (1 + _RATE_TOL) + 1e-4)):
-        out.append(f"curvature {float(curv[moving].max()):.3f} 1/m above max_curvature")
+    sharp = moving & (curv > vehicle.max_curvature * (1 + _RATE_TOL) + _CURVATURE_TOL)
+    if np.any(sharp):
+        out.append(Violation(kind.CURVATURE, t=_first(t, sharp), value=float(curv[moving].max())))
     lat = traj.v**2 * curv
-    if np.any(lat > vehicle.max_lateral_acceleration * (1 + _RATE_TOL) + 1e-3):
-        out.append(f"lateral acceleration {float(lat.max()):.2f} m/s² above the limit")
-    if np.any(traj.a > vehicle.max_acceleration + 1e-3) or np.any(traj.a < -vehicle.max_deceleration - 1e-3):
-        out.append("acceleration outside the limits")
-    dt = np.diff(traj.t)
+    sliding = lat > vehicle.max_lateral_acceleration * (1 + _RATE_TOL) + _LATERAL_TOL
+    if np.any(sliding):
+        out.append(Violation(kind.LATERAL_ACCELERATION, t=_first(t, sliding), value=float(lat.max())))
+    outside_limits = (traj.a > vehicle.max_acceleration + _ACCELERATION_TOL) | (
+        traj.a < -vehicle.max_deceleration - _ACCELERATION_TOL
+    )
+    if np.any(outside_limits):
+        out.append(Violation(kind.ACCELERATION, t=_first(t, outside_limits)))
+    dt = np.diff(t)
     step = np.hypot(np.diff(traj.x), np.diff(traj.y))
     expected = 0.5 * (traj.v[:-1] + traj.v[1:]) * dt
-    if np.any(np.abs(step - expected) > 0.05 + 0.05 * expected):
-        out.append("positions inconsistent with v·dt")
+    inconsistent = np.abs(step - expected) > _STEP_ABS_TOL + _STEP_REL_TOL * expected
+    if np.any(inconsistent):
+        out.append(Violation(kind.STEP, t=_first(t, inconsistent)))
     ds = np.diff(traj.s)
-    if np.any(ds < -1e-6) or np.any((ds <= 0) & moving[:-1] & moving[1:]):
-        out.append("s does not increase while moving")
-    travelled = np.concatenate(([True], step > 1e-3))
+    backwards = (ds < -_S_TOL) | ((ds <= 0) & moving[:-1] & moving[1:])
+    if np.any(backwards):
+        out.append(Violation(kind.S_DECREASES, t=_first(t, backwards)))
+    travelled = np.concatenate(([True], step > _STANDSTILL_STEP))
     if self_intersects(np.column_stack((traj.x, traj.y))[travelled]):
-        out.append("self-intersects")
+        out.append(Violation(kind.SELF_INTERSECTS))
     prints = footprints(traj.x, traj.y, traj.heading, vehicle)
     corners = box_corners(traj.x, traj.y, traj.heading, vehicle.length, vehicle.width).reshape(-1, 2)
     fr = to_frenet(ref, corners)
@@ -97,17 +205,20 @@ def trajectory_violations(
     # until it has moved one length away.
     near_start = np.hypot(traj.x - traj.x[0], traj.y - traj.y[0]) < vehicle.length
     allowance = np.where(near_start, max(float(outside[0].max()), 0.0), 0.0)[:, None]
-    if np.any(outside - allowance > _GEOMETRY_TOL):
-        out.append("footprint leaves the lane")
+    off_lane = np.any(outside - allowance > _GEOMETRY_TOL, axis=1)
+    if np.any(off_lane):
+        out.append(Violation(kind.LANE, t=_first(t, off_lane)))
     for ob_id, shape in static:
-        if np.any(shapely.intersects(prints, shape)):
-            out.append(f"footprint hits obstacle {ob_id}")
+        hits = shapely.intersects(prints, shape)
+        if np.any(hits):
+            out.append(Violation(kind.HITS_OBSTACLE, obstacle_id=ob_id, t=_first(t, hits)))
     for ob in problem.obstacles:
         if isinstance(ob, DynamicObstacle) and not any(ob.id == i for i, _ in static):
-            states = prediction_at(ob, traj.t)
+            states = prediction_at(ob, t)
             boxes = shapely.polygons(
                 box_corners(states[:, 0], states[:, 1], states[:, 2], ob.length, ob.width)
             )
-            if np.any(shapely.intersects(prints, boxes)):
-                out.append(f"footprint hits moving obstacle {ob.id}")
+            hits = shapely.intersects(prints, boxes)
+            if np.any(hits):
+                out.append(Violation(kind.HITS_MOVING_OBSTACLE, obstacle_id=ob.id, t=_first(t, hits)))
     return out

@@ -34,9 +34,10 @@ from matplotlib.text import Text
 from PIL import Image
 from tqdm import tqdm
 
-from planner.candidates import CandidateSet, generate_candidates, lane_bounds
+from planner.candidates import CandidateSet, generate_candidates
 from planner.collision import box_corners
 from planner.frenet import to_cartesian
+from planner.lane import lane_bounds
 from planner.problem import CircleObstacle, DynamicObstacle, Generator, PlanningProblem, PolygonObstacle
 from planner.reference import ReferenceLine, build_reference
 from planner.roads import demo_problem

@@ -8,7 +8,8 @@ from app.conversions import candidates_response, to_problem
 from app.errors import ERROR_RESPONSES
 from app.models.candidates import CandidatesResponse
 from app.routes.examples import PlanningBody
-from planner.candidates import ego_frenet, generate_candidates
+from planner.candidates import generate_candidates
+from planner.ego import ego_frenet
 from planner.reference import build_reference
 
 router = APIRouter(prefix="/v1", tags=["candidates"], responses=ERROR_RESPONSES)

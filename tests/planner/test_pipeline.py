@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from planner.pipeline import plan, static_shapes
+from planner.pipeline import plan
 from planner.problem import (
     CircleObstacle,
     DynamicObstacle,
@@ -20,6 +20,8 @@ from planner.problem import (
 )
 from planner.reference import build_reference
 from planner.roads import demo_problem, straight
+from planner.st_bounds import static_shapes
+from planner.timing import STAGES, TOTAL
 from planner.validation import trajectory_violations
 
 ROAD = straight(200.0, step=5.0)  # a coarse 5 m polyline
@@ -142,7 +144,7 @@ def test_demo_u_turn_plans_around_the_corner() -> None:
     result = _checked(demo_problem())
     assert result.status == "ok"
     assert result.diagnostics.candidates.generated == demo_problem().options.num_candidates
-    assert set(result.diagnostics.timing_ms) >= {"reference", "candidates", "lateral", "speed", "total"}
+    assert list(result.diagnostics.timing_ms) == [*STAGES[:-1], TOTAL]  # every stage but the fallback
 
 
 def _random_problem(rng: np.random.Generator) -> PlanningProblem:
@@ -205,11 +207,12 @@ def test_random_problems_end_in_a_status_or_a_domain_error() -> None:
         except PlannerError:
             continue
         answered += 1
-        assert result.status in ("ok", "stopped", "fallback")
         assert np.isfinite(result.trajectory.x).all() and np.isfinite(result.trajectory.v).all()
-        if result.status in ("ok", "stopped"):
-            ref = build_reference(problem.reference_line)
-            assert trajectory_violations(ref, problem, result.trajectory, static_shapes(problem)) == []
+        ref = build_reference(problem.reference_line)
+        broken = trajectory_violations(ref, problem, result.trajectory, static_shapes(problem))
+        # what the answer says it breaks is what it breaks; only a fallback may break anything
+        assert list(result.violations) == broken
+        assert result.status == "fallback" or broken == []
     assert answered >= 10
 
 

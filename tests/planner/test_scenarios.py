@@ -32,7 +32,7 @@ from app.conversions import to_problem
 from app.models.planning import PlanningRequest
 from planner.collision import obstacle_shape
 from planner.frenet import to_frenet
-from planner.pipeline import PlanResult, plan
+from planner.pipeline import plan
 from planner.problem import (
     CircleObstacle,
     DynamicObstacle,
@@ -44,6 +44,7 @@ from planner.problem import (
     Vehicle,
 )
 from planner.reference import ReferenceLine, build_reference, widths_at
+from planner.result import PlanResult
 from planner.roads import u_turn
 from planner.trajectory import Trajectory
 from tests.planner.scenario_roads import (
@@ -578,7 +579,7 @@ def test_pedestrian_crossing_ahead_is_yielded_to() -> None:
         options=Options(horizon_time=8.0, dt=0.1, target_speed=10.0),
     )
     result = planned(problem)
-    assert result.status in ("ok", "stopped"), result.message
+    assert result.status == "ok", result.message  # yielding is the speed profile's: nothing blocks the road
     traj = result.trajectory
     veh = problem.vehicle
     corners = _corners(traj.x, traj.y, traj.heading, veh.length, veh.width)
@@ -653,7 +654,6 @@ def test_commonroad_request(path: Path) -> None:
     problem = to_problem(PlanningRequest.model_validate(json.loads(path.read_text())))
     result = plan(problem)
     traj = result.trajectory
-    assert result.status in ("ok", "stopped", "fallback")
     problems = trajectory_problems(problem, traj)
     if path.stem not in UNREACHABLE:
         assert problems == [], f"status {result.status!r} ({result.message}):\n" + "\n".join(problems)

@@ -11,7 +11,7 @@ import pytest
 
 import planner_tools.sim as sim
 from planner.collision import prediction_at
-from planner.errors import InvalidInputError, PlanningError
+from planner.errors import InvalidInputError, PlannerError
 from planner.problem import (
     CircleObstacle,
     DynamicObstacle,
@@ -288,7 +288,7 @@ def test_a_car_from_behind_is_a_collision_and_ends_the_run() -> None:
 
 def test_a_planning_error_brakes_instead_of_crashing(monkeypatch: pytest.MonkeyPatch) -> None:
     def failing(problem: PlanningProblem) -> None:
-        raise PlanningError("no luck")
+        raise PlannerError("no luck")
 
     monkeypatch.setattr(sim, "plan", failing)
     problem = PlanningProblem(straight(100.0), Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, speed=6.0))

@@ -141,7 +141,8 @@ def full_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
         for ob in problem.obstacles
         if isinstance(ob, PolygonObstacle)
     ]
-    out = list(trajectory_violations(ref, problem, traj, polygons))  # dynamic obstacles: at each time
+    # the planner's own checks (dynamic obstacles at each time), as messages
+    out = [v.message for v in trajectory_violations(ref, problem, traj, polygons)]
     veh, ego = problem.vehicle, problem.ego
 
     prints = shapely.polygons(box_corners(traj.x, traj.y, traj.heading, veh.length, veh.width))

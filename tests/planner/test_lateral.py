@@ -1,4 +1,5 @@
-"""The lateral corridor where the road ends or turns tightly: regressions from two CommonRoad runs.
+"""The lateral stage: its knots and curvature bound, and the corridor where the road ends or turns
+tightly (regressions from CommonRoad runs).
 
 * ITA_CarpiCentro-9_6_T-1: the lane's right width falls to 0 at the reference's last point (the converter
   gives the end point that width). The bounds of the last knots jumped there, beyond where the vehicle
@@ -25,6 +26,9 @@ import numpy as np
 import pytest
 from scenario_roads import Road, arc_piece, straight_piece
 
+from planner.config import DEFAULT_CONFIG, LateralConfig
+from planner.ego import EgoFrenet
+from planner.lateral import curvature_allowance, knots
 from planner.pipeline import plan
 from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner_tools.io import problem_from_json
@@ -49,6 +53,35 @@ def _recorded(name: str, t: float, ego: Ego) -> PlanningProblem:
     """The request of a recorded scene at time ``t`` [s] with ``ego`` (as the closed loop sends it)."""
     problem = problem_from_json(json.loads((DATA / f"{name}.json").read_text()))
     return replace(problem, ego=ego, obstacles=tuple(shift_obstacle(ob, t) for ob in problem.obstacles))
+
+
+START = EgoFrenet(s=10.0, d=0.0, dd=0.0, ddd=0.0, heading_error=0.0)
+
+
+def test_knots_are_the_spacing_apart_up_to_their_most_and_at_least_three() -> None:
+    config = DEFAULT_CONFIG.lateral
+    at = knots(START, 60.0, config)
+    assert at[0] == 10.0 and at[-1] == 60.0
+    np.testing.assert_allclose(np.diff(at), config.knot_spacing)
+    assert knots(START, 10.2, config).tolist() == [10.0, 10.5, 11.0]  # at least two spacings on
+    far = knots(START, 10_000.0, config)
+    assert far.size == config.max_knots and far[-1] == 10_000.0
+    assert knots(START, 60.0, LateralConfig(knot_spacing=20.0)).size == 4
+    assert knots(START, 10.0, LateralConfig(knot_spacing=20.0)).size == 3
+
+
+def test_the_curvature_bound_is_the_vehicles_within_what_the_speed_allows() -> None:
+    problem = PlanningProblem(np.array([[0.0, 0.0], [100.0, 0.0]]), Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, 15.0))
+    v = problem.vehicle
+    s = np.linspace(10.0, 60.0, 11)
+    allowance = curvature_allowance(s, START, problem)
+    assert np.all(allowance <= 0.9 * v.max_curvature)
+    # braking at half the deceleration from 15 m/s: v² = 225 − 6·travelled
+    v_sq = np.maximum(225.0 - v.max_deceleration * (s - 10.0), 1.0)
+    np.testing.assert_allclose(
+        allowance, np.minimum(0.9 * v.max_curvature, 0.9 * v.max_lateral_acceleration / v_sq)
+    )
+    assert allowance[0] < allowance[-1]  # slower farther on: tighter curves
 
 
 @pytest.mark.parametrize("curved", [False, True], ids=["straight", "left-curve"])

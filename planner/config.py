@@ -1,0 +1,118 @@
+"""The planner's tunables: one frozen configuration, one group per stage.
+
+:func:`planner.pipeline.plan` takes a :class:`PlannerConfig` (default :data:`DEFAULT_CONFIG`); every
+number a stage decides with that is not part of the request lives here, with its unit.
+
+Clearances. Two margins keep the vehicle away from things, each defined once:
+
+* ``Options.lateral_margin`` [m] (part of the request): kept to the lane's edges and to the static
+  obstacles by the lateral bounds (:func:`planner.bounds.lateral_bounds`, dropped to the lane's edges
+  only where the lane leaves no room for it), by the candidates' lane bounds
+  (:func:`planner.candidates.generate_candidates`) and by the hold path's check of the obstacles on
+  the held offset (:func:`planner.lateral.hold_path`).
+* :attr:`PlannerConfig.obstacle_margin` [m]: added around the footprint in the Frenet-box decisions
+  that look at every candidate or every moving obstacle at once: candidate scoring
+  (:func:`planner.selection.choose_candidate`), the space-time bound of the moving obstacles ahead and
+  the follower bound (:mod:`planner.st_bounds`).
+
+The trajectory checks (:mod:`planner.validation`) keep no margin: they judge the exact footprint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class SelectionConfig:
+    """Weights of a candidate's cost ``Σd²/n + w_bend·Σ|Δd′| + w_progress·(1 − progress/longest)``
+    (plus ``collision_cost`` when it meets an obstacle box); the offset term has weight 1 [1/m²]."""
+
+    #: weight of the summed change of slope ``Σ|Δd′|`` [-]
+    bend_weight: float = 10.0
+    #: weight of the share of the longest progress along the reference not reached [-]
+    progress_weight: float = 20.0
+    #: added to the cost of a candidate that meets an obstacle box (any free one is better) [-]
+    collision_cost: float = 1e6
+
+
+@dataclass(frozen=True)
+class LateralConfig:
+    """The lateral stage: knots and the piecewise-jerk QP on ``d(s)``."""
+
+    #: knot spacing of the lateral QP [m]
+    knot_spacing: float = 0.5
+    #: most knots of the lateral QP
+    max_knots: int = 240
+    #: bounds handed to the QP are tightened by this, covering its tolerance [m]
+    qp_slack: float = 0.01
+    #: bound on the lateral profile's jerk ``|d‴|`` [1/m²]
+    jerk: float = 0.5
+    #: ADMM iterations of one lateral QP solve (a count, not a time: the same request gets the same answer)
+    max_iter: int = 4000
+    #: the candidate's slope is averaged over this window to give the heading error of the bounds [m]
+    heading_window: float = 4.0
+    #: share of ``max_curvature`` the QP's curvature bound allows [-]
+    curvature_share: float = 0.9
+    #: share of ``max_curvature`` allowed when the speed-dependent bound left the QP no solution [-]
+    retry_curvature_share: float = 0.99
+    #: ``1 − κd`` of the curvature bound's linearisation is taken at least this [-]
+    min_stretch: float = 0.05
+
+
+@dataclass(frozen=True)
+class SpeedConfig:
+    """The speed stage: the profile's grid, jerks, headways and the SQP's settings."""
+
+    #: most steps of the speed profile
+    steps: int = 80
+    #: jerk bound of the speed profile [m/s³]
+    jerk: float = 8.0
+    #: jerk allowed when braking for a blocked road, when the comfortable jerk cannot slow down in
+    #: time, and in the fallback [m/s³]
+    emergency_jerk: float = 30.0
+    #: a profile needing more slack than this [m/s or m] is re-planned with the emergency jerk; also the
+    #: SQP's ``restore_violation`` (above it, the SQP restarts from a full stop)
+    slack: float = 0.05
+    #: a profile past a stop or a space-time bound by more than this [m] is replaced by full braking
+    position_slack: float = 0.01
+    #: the speed limit at a point also holds this far either side of it [m]
+    limit_reach: float = 2.0
+    #: time headway kept to a moving obstacle ahead: the vehicle may not be where it was this long ago [s]
+    headway: float = 1.0
+    #: time headway kept ahead of a vehicle coming from behind: the vehicle should be ahead of where that
+    #: one will be this much later [s] (a soft bound, weaker than the stop and the obstacles ahead). Half
+    #: the headway kept to the obstacles ahead: the gap behind is the follower's to keep, ours is not to
+    #: brake into it, and the two headways together must fit between a leader and a follower.
+    follower_headway: float = 0.5
+    #: SQP iterations (QPs solved) of one speed profile
+    sqp_iterations: int = 2
+    #: the SQP has converged once the linearised speed limit agrees with the limit within this, wherever
+    #: the speed is near it [m/s]
+    sqp_tolerance: float = 1e-3
+    #: residual tolerance of each QP of the SQP
+    qp_residual: float = 1e-6
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Every tunable of :func:`planner.pipeline.plan` (see the module docstring for the clearances)."""
+
+    #: share of the lateral-acceleration limit the plan works with (the speed profile's limit, the
+    #: lateral QP's curvature bound and the ego's assumed curvature; the linearisation's tolerance) [-]
+    limit_margin: float = 0.9
+    #: margin around the footprint in candidate scoring and the space-time and follower bounds [m]
+    obstacle_margin: float = 0.3
+    #: gap kept behind a blocked point or a moving obstacle, beyond half the vehicle length [m]
+    stop_gap: float = 1.0
+    #: the ego's assumed curvature is limited by ``a_lat,max / v²`` for a speed of at least this [m/s]
+    min_curvature_speed: float = 0.1
+    #: an obstacle farther from the reference than the widest lane side and the vehicle's length by
+    #: more than this cannot matter [m]
+    corridor_spare: float = 1.0
+    selection: SelectionConfig = field(default_factory=SelectionConfig)
+    lateral: LateralConfig = field(default_factory=LateralConfig)
+    speed: SpeedConfig = field(default_factory=SpeedConfig)
+
+
+DEFAULT_CONFIG = PlannerConfig()

@@ -1,0 +1,292 @@
+"""The lateral stage: the chosen candidate's offsets smoothed into a drivable path by the lateral QP.
+
+At knots ``s_i`` [m] (``knot_spacing`` apart, at most ``max_knots``) from the ego to the candidate's end,
+the lateral bounds (:func:`planner.bounds.lateral_bounds`, obstacles passed on the candidate's side) are
+cut before the first block, held beyond the reach of the vehicle's centre and opened to the ego's
+offset near the start; the piecewise-jerk QP (:mod:`solvers.lateral_qp`) then tracks the candidate
+within them, its ``d″`` bounded so that the path's curvature keeps :func:`curvature_allowance`.
+
+Where the margin to the lane's edges leaves the QP no solution, it is dropped (the margin to obstacles
+is kept); where the QP has no usable answer but the road is blocked ahead, the path holds the ego's
+offset and the speed profile stops before the block (:func:`hold_path`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.bounds import LateralBounds, lateral_bounds, pass_left
+from planner.collision import FrenetBoxes, box_hits, vehicle_extent
+from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
+from planner.ego import EgoFrenet
+from planner.lane import lane_bounds
+from planner.problem import PlanningProblem
+from planner.reference import FloatArray, ReferenceLine
+from planner.trajectory import Path, frenet_path
+from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
+from solvers.result import SolveInfo
+
+
+def knots(start: EgoFrenet, s_end: float, config: LateralConfig = DEFAULT_CONFIG.lateral) -> FloatArray:
+    """Knots [m] from the ego to ``s_end`` (at least two spacings on), ``knot_spacing`` apart or wider
+    when there would be more than ``max_knots``; at least 3."""
+    s_end = max(s_end, start.s + 2.0 * config.knot_spacing)
+    n = int(np.clip(np.ceil((s_end - start.s) / config.knot_spacing) + 1, 3, config.max_knots))
+    return np.linspace(start.s, s_end, n)
+
+
+def held_offset(ref: ReferenceLine, s: FloatArray, d: float) -> Path:
+    """The path at the constant offset ``d`` [m] through knots ``s`` [m] (no steering)."""
+    hold = np.full(s.shape, d)
+    return frenet_path(ref, s, hold, 0.0 * hold, 0.0 * hold)
+
+
+def smoothed_slope(d: FloatArray, s: FloatArray, window: float) -> FloatArray:
+    """Heading error [rad] of a lateral profile ``d(s)`` [m]: its slope averaged over ``window`` [m]."""
+    slope = np.arctan(np.gradient(d, s))
+    width = max(1, round(window / max(float(s[1] - s[0]), 1e-6)))
+    padded = np.pad(slope, (width // 2, width - 1 - width // 2), mode="edge")
+    return np.asarray(np.convolve(padded, np.ones(width) / width, mode="valid"))
+
+
+def curvature_allowance(
+    s: FloatArray, start: EgoFrenet, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG
+) -> FloatArray:
+    """Largest path curvature [1/m] at knots ``s`` [m]: ``curvature_share · κ_max``, and
+    ``limit_margin · a_lat,max / v²`` for the speed ``v`` the vehicle can at best have slowed to there
+    (braking at half its deceleration from ``v₀``), so that the speed profile can keep the
+    lateral-acceleration limit."""
+    v = problem.vehicle
+    travelled = np.maximum(s - start.s, 0.0)
+    v_sq = np.maximum(problem.ego.speed**2 - v.max_deceleration * travelled, 1.0)
+    return np.minimum(
+        config.lateral.curvature_share * v.max_curvature,
+        config.limit_margin * v.max_lateral_acceleration / v_sq,
+    )
+
+
+def lateral_qp(
+    solver: LateralQPSolver,
+    bounds: LateralBounds,
+    d_ref: FloatArray,
+    start: EgoFrenet,
+    ref: ReferenceLine,
+    allowance: FloatArray,
+    config: LateralConfig,
+    time_limit_s: float | None = None,
+) -> LateralQPResult:
+    """Piecewise-jerk QP on ``d(s)``; ``d″`` bounds linearised at ``d_ref`` keep ``|κ_path| ≤ allowance``.
+
+    For small ``d′`` the path's curvature is ``κ_x ≈ (d″/(1 − κd) + κ)/(1 − κd)``, so
+    ``|κ_x| ≤ c`` ⇔ ``(−c(1 − κd) − κ)(1 − κd) ≤ d″ ≤ (c(1 − κd) − κ)(1 − κd)``, with ``1 − κd`` taken
+    at ``d_ref`` (at least ``min_stretch``). The bounds are tightened by ``qp_slack`` [m].
+    """
+    s = bounds.s
+    lower = bounds.lower + config.qp_slack
+    upper = np.maximum(bounds.upper - config.qp_slack, lower)
+    kappa = ref.kappa_at(s)
+    one = np.clip(1.0 - kappa * np.clip(d_ref, lower, upper), config.min_stretch, None)
+    with np.errstate(over="ignore"):  # a curvature limit near the largest float: ±inf, no bound
+        ddd_upper = (allowance * one - kappa) * one
+        ddd_lower = (-allowance * one - kappa) * one
+    problem = LateralQPProblem(
+        ds=float(s[1] - s[0]),
+        d_lower=lower,
+        d_upper=upper,
+        d_ref=np.clip(d_ref, lower, upper),
+        jerk_max=config.jerk,
+        d0=start.d,
+        dd0=start.dd,
+        ddd0=start.ddd,
+        ddd_lower=ddd_lower,
+        ddd_upper=ddd_upper,
+    )
+    return solver.solve(problem, max_iter=config.max_iter, time_limit_s=time_limit_s)
+
+
+@dataclass(frozen=True)
+class _Attempt:
+    """One set of bounds and the QP's answer on them: the bounds handed to the QP (cut before a block),
+    the reference offsets at their knots, whether a block is the road's end, and the QP's answer."""
+
+    bounds: LateralBounds
+    d_ref: FloatArray
+    road_end: bool
+    qp: LateralQPResult
+
+    def better_than_unsolved(self) -> bool:
+        """Solved, with no block on the way other than the road's end."""
+        return self.qp.info.converged and (self.bounds.blocked is None or self.road_end)
+
+    def rank(self) -> tuple[float, bool]:
+        """How good: the farther the first block (none: infinitely far), then solved over not."""
+        blocked = self.bounds.blocked
+        far = np.inf if blocked is None or self.road_end else float(self.bounds.s[-1])
+        return far, self.qp.info.converged
+
+
+def _qp_bounds(
+    bounds: LateralBounds, d_ref: FloatArray, start: EgoFrenet, reach: float, vehicle_length: float
+) -> tuple[LateralBounds, FloatArray]:
+    """The bounds handed to the QP and the reference offsets at their knots (see the module docstring)."""
+    s, lower, upper = bounds.s, bounds.lower, bounds.upper
+    if bounds.blocked is not None:  # cut before the block (the path runs on: ≥ 3 knots)
+        keep = max(bounds.blocked, 3)
+        s, d_ref, lower = s[:keep], d_ref[:keep], lower[:keep]
+        upper = np.maximum(upper[:keep], lower)
+        lower = np.where(np.isfinite(lower), lower, start.d)
+        upper = np.where(np.isfinite(upper), upper, start.d)
+    # Beyond that the path is never driven: the lane's end there (its width often falls to 0 at the last
+    # point) must not bend the path before it. The bounds of the last knot within reach hold there.
+    last = int(np.searchsorted(s, reach, side="right")) - 1
+    if last >= 1:
+        beyond = s > reach
+        lower = np.where(beyond, lower[last], lower)
+        upper = np.where(beyond, upper[last], upper)
+    # The ego is where it is: where the bounds near the start exclude its offset (a conservative bound
+    # it is already inside, as beside an obstacle it is passing), they open to it and close again
+    # linearly over one vehicle length, so that the QP can start there; the checks judge the footprint.
+    ramp = np.clip((s - start.s) / vehicle_length, 0.0, 1.0)
+    lower = np.minimum(lower, start.d + (lower - start.d) * ramp)
+    upper = np.maximum(upper, start.d + (upper - start.d) * ramp)
+    return LateralBounds(s=s, lower=lower, upper=upper, blocked=bounds.blocked), d_ref
+
+
+def _attempt(
+    solver: LateralQPSolver,
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    at: FloatArray,
+    d_ref: FloatArray,
+    boxes: FrenetBoxes,
+    lane_margin: float | None,
+    time_left: Callable[[], float | None],
+    config: PlannerConfig,
+) -> _Attempt:
+    """Bounds at knots ``at`` (``lane_margin`` [m] to the lane's edges, default the options' margin) and
+    the lateral QP on them, tracking the candidate's offsets ``d_ref`` [m]."""
+    vehicle, options = problem.vehicle, problem.options
+    lane = lane_bounds(ref, problem.lane, at, half_width=0.5 * vehicle.width, margin=options.lateral_margin)
+    bounds = lateral_bounds(
+        ref,
+        problem.lane,
+        at,
+        vehicle,
+        margin=options.lateral_margin,
+        boxes=boxes,
+        left_of=pass_left(boxes, at, d_ref, lane.lower, lane.upper),
+        heading_error=smoothed_slope(d_ref, at, config.lateral.heading_window),
+        lane_margin=lane_margin,
+    )
+    # The vehicle's centre never gets beyond this: the speed stage stops its front stop_gap before the
+    # reference's end.
+    reach = ref.length - 0.5 * vehicle.length - config.stop_gap
+    # a lane that runs out (narrower than the vehicle) at the reference's end is its end, not a block
+    road_end = bounds.blocked is not None and at[bounds.blocked] >= reach
+    bounds, d_ref = _qp_bounds(bounds, d_ref, start, reach, vehicle.length)
+    allowance = curvature_allowance(bounds.s, start, problem, config)
+    qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
+    if not qp.info.usable:  # too fast for the road: keep at least the vehicle's limit
+        allowance = np.full(bounds.s.shape, config.lateral.retry_curvature_share * vehicle.max_curvature)
+        qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
+    return _Attempt(bounds, d_ref, bool(road_end), qp)
+
+
+@dataclass(frozen=True)
+class LateralPlan:
+    """The lateral stage's outcome.
+
+    Attributes:
+        path: the QP's path, the held offset (``held``), or None when there is neither (a failure).
+        info: how the lateral QP went.
+        bounds: the bounds at the knots the QP ran on (cut before a block).
+        blocked: the first blocked knot of ``bounds.s`` (an obstacle on the held offset may come before
+            the bounds' own block), or None.
+        road_end: whether the block is the lane's end rather than something in the way.
+        held: whether ``path`` holds the ego's offset because the QP left no room to steer.
+        obstacle_on_hold: whether an obstacle on the held offset is the block.
+    """
+
+    path: Path | None
+    info: SolveInfo
+    bounds: LateralBounds
+    blocked: int | None
+    road_end: bool
+    held: bool = False
+    obstacle_on_hold: bool = False
+
+    @property
+    def knots(self) -> int:
+        """Knots of the lateral QP."""
+        return int(self.bounds.s.shape[0])
+
+    @property
+    def block_at(self) -> float:
+        """Where a block stops the path [m] (the bounds end before the bounds' own block)."""
+        return float(self.bounds.s[self.blocked]) if self.obstacle_on_hold else float(self.bounds.s[-1])
+
+    @property
+    def stops(self) -> bool:
+        """Whether the plan must stop before a block (one that is not the lane's end)."""
+        return self.blocked is not None and not self.road_end
+
+
+def lateral_stage(
+    solver: LateralQPSolver,
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    candidate: tuple[FloatArray, FloatArray],
+    boxes: FrenetBoxes,
+    time_left: Callable[[], float | None],
+    config: PlannerConfig = DEFAULT_CONFIG,
+) -> LateralPlan:
+    """The path along the chosen ``candidate`` (its kept ``(s, d)`` [m]) clear of the static obstacles'
+    ``boxes``; the QP gets what ``time_left`` [s] (None: no limit) says is left of the budget."""
+    s_c, d_c = candidate
+    at = knots(start, float(s_c[-1]), config.lateral)
+    d_ref = np.interp(at, s_c, d_c)
+    attempt = _attempt(solver, ref, problem, start, at, d_ref, boxes, None, time_left, config)
+    if problem.options.lateral_margin > 0.0 and not attempt.better_than_unsolved():
+        # Where the margin to the lane's edges leaves no room (a tight turn, a narrow passage), it is
+        # dropped, as it is knot by knot where the lane is narrow (the margin to obstacles is kept).
+        relaxed = _attempt(solver, ref, problem, start, at, d_ref, boxes, 0.0, time_left, config)
+        if relaxed.rank() > attempt.rank():
+            attempt = relaxed
+    bounds, qp = attempt.bounds, attempt.qp
+    if qp.info.usable:  # an unfinished iterate comes integrated from the initial state: the checks decide
+        path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
+        return LateralPlan(path, qp.info, bounds, bounds.blocked, attempt.road_end)
+    if bounds.blocked is None:
+        return LateralPlan(None, qp.info, bounds, None, attempt.road_end)
+    return hold_path(ref, problem, start, boxes, bounds, bounds.blocked, attempt.road_end, qp.info)
+
+
+def hold_path(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    boxes: FrenetBoxes,
+    bounds: LateralBounds,
+    blocked: int,
+    road_end: bool,
+    info: SolveInfo,
+) -> LateralPlan:
+    """Close to a block (the knot ``blocked``) the few knots left may leave the QP no room to steer: keep
+    the current offset along ``bounds.s`` and stop before the block (the trajectory checks still decide).
+
+    At that offset the footprint (aligned with the reference, as the path is) may meet a static obstacle
+    before the block: the first knot where it meets one, with ``Options.lateral_margin`` along ``s`` and
+    ``d``, is the block then (the moving ones bound the speed profile).
+    """
+    path = held_offset(ref, bounds.s, start.d)
+    zero = np.zeros_like(bounds.s)
+    half_s, half_d = vehicle_extent(zero, problem.vehicle, problem.options.lateral_margin)
+    met = np.flatnonzero(box_hits(boxes, bounds.s, path.d, half_s, half_d))
+    if met.size and met[0] < blocked:
+        return LateralPlan(path, info, bounds, int(met[0]), False, held=True, obstacle_on_hold=True)
+    return LateralPlan(path, info, bounds, blocked, road_end, held=True)

@@ -1,0 +1,219 @@
+"""Which obstacles stay put, and the space-time bounds the moving ones put on the speed profile.
+
+A static obstacle (:func:`planner.collision.is_static`) bounds the path: the candidates' choice and the
+lateral bounds keep clear of it. A moving one bounds the speed profile along the chosen path, as the
+arc length ``σ`` [m] of the vehicle's centre along it at the profile's knot times ``t_k`` [s]:
+
+* the obstacles ahead of the ego at the start: ``σ(t_k) ≤ σ_max(t_k)``, short of where the footprint
+  (``obstacle_margin`` around it) first meets the obstacle's Frenet box as it was a ``headway`` earlier,
+  less ``stop_gap`` (:func:`space_time_bound`);
+* the vehicles behind it (:func:`followers`): ``σ(t_k) ≥ σ_min(t_k)``, ahead of where the footprint meets
+  the box at any time in ``[t_k, t_k + follower_headway]``, plus ``stop_gap`` (:func:`follower_bound`; a
+  soft bound in the speed profile).
+
+Only obstacles that come near the path at some time are mapped by TransF-κ (:meth:`Along.near`): in
+dense traffic mapping the others would be most of the stage's cost.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+from shapely.geometry.base import BaseGeometry
+
+from planner.collision import (
+    box_corners,
+    boxes_overlap,
+    is_static,
+    obstacle_shape,
+    prediction_at,
+    vehicle_extent,
+)
+from planner.config import DEFAULT_CONFIG, PlannerConfig
+from planner.frenet import to_frenet
+from planner.problem import DynamicObstacle, PlanningProblem
+from planner.reference import FloatArray, ReferenceLine
+from planner.trajectory import Path
+
+
+def static_shapes(problem: PlanningProblem) -> list[tuple[str, BaseGeometry]]:
+    """Outlines of the obstacles that stay put over the horizon (parked cars given as predictions too)."""
+    horizon = problem.options.horizon_time
+    return [(ob.id, obstacle_shape(ob)) for ob in problem.obstacles if is_static(ob, horizon)]
+
+
+def moving_obstacles(problem: PlanningProblem) -> list[DynamicObstacle]:
+    """The obstacles that move over the horizon: those the speed profile keeps clear of."""
+    horizon = problem.options.horizon_time
+    return [ob for ob in problem.obstacles if isinstance(ob, DynamicObstacle) and not is_static(ob, horizon)]
+
+
+@dataclass(frozen=True)
+class SpaceTimeBounds:
+    """Bounds on the arc length along the path [m] at the speed profile's knot times, each None when
+    nothing bounds it: ``upper`` from the obstacles ahead, ``lower`` (soft) from the vehicles behind."""
+
+    upper: FloatArray | None
+    lower: FloatArray | None
+
+
+def space_time_bounds(
+    ref: ReferenceLine,
+    path: Path,
+    problem: PlanningProblem,
+    t: FloatArray,
+    start_s: float,
+    config: PlannerConfig = DEFAULT_CONFIG,
+) -> SpaceTimeBounds:
+    """Both bounds at the knot times ``t`` [s] (evenly spaced, at least two) for an ego at ``start_s`` [m],
+    with their ``stop_gap``."""
+    movers = moving_obstacles(problem)
+    if not movers:
+        return SpaceTimeBounds(None, None)
+    speed, gap = config.speed, config.stop_gap
+    along = Along.of(ref, path, problem, config)
+    # where an obstacle was a headway ago, not where it is: a gap that grows with its speed
+    upper = space_time_bound(along, movers, np.maximum(t - speed.headway, 0.0), start_s)
+    lower = follower_bound(along, movers, t, speed.follower_headway, start_s, problem.ego.speed)
+    return SpaceTimeBounds(
+        upper=None if upper is None else np.maximum(upper - gap, 0.0),
+        lower=None if lower is None else lower + gap,
+    )
+
+
+@dataclass(frozen=True)
+class Along:
+    """The path as the moving obstacles' bounds see it: its knots in a k-d tree for the near-the-path
+    filter, and the footprint's half-extents on them [m] (aligned with the reference, with
+    ``obstacle_margin`` around it)."""
+
+    ref: ReferenceLine
+    path: Path
+    tree: cKDTree
+    half_s: FloatArray
+    half_d: FloatArray
+    knot_spacing: float
+
+    @classmethod
+    def of(cls, ref: ReferenceLine, path: Path, problem: PlanningProblem, config: PlannerConfig) -> Along:
+        half_s, half_d = vehicle_extent(np.zeros_like(path.s), problem.vehicle, config.obstacle_margin)
+        tree = cKDTree(np.column_stack((path.x, path.y)))
+        return cls(ref, path, tree, half_s, half_d, config.lateral.knot_spacing)
+
+    def near(self, movers: list[DynamicObstacle], t: FloatArray) -> tuple[NDArray[np.intp], list[FloatArray]]:
+        """Which of ``movers`` come near the path at some time of ``t`` [s], and every mover's states then
+        (shape (T, 3) each). "Near": within twice the reach of the footprint (its half-diagonal) and of
+        the largest obstacle, plus a knot spacing (generous: a Frenet box may be larger than the shape it
+        bounds)."""
+        states = [prediction_at(ob, t) for ob in movers]
+        own = float(np.hypot(self.half_s[0], self.half_d[0]))
+        largest = max(float(np.hypot(ob.length, ob.width)) for ob in movers)
+        reach = 2.0 * (own + largest) + self.knot_spacing
+        dist, _ = self.tree.query(np.concatenate(states)[:, :2], distance_upper_bound=reach)  # one query
+        near = np.flatnonzero(np.isfinite(dist).reshape(len(movers), -1).any(axis=1))
+        return near, states
+
+    def meets(self, boxes: tuple[FloatArray, FloatArray, FloatArray, FloatArray]) -> NDArray[np.bool_]:
+        """Whether the footprint on each knot meets each obstacle's box at each time: ``boxes`` are
+        :func:`frenet_extents` (each (K, T)); the answer has shape (K, T, knots)."""
+        s_min, s_max, d_min, d_max = (b[..., None] for b in boxes)
+        s, d = self.path.s[None, None, :], self.path.d[None, None, :]
+        return boxes_overlap(s, d, self.half_s, self.half_d, s_min, s_max, d_min, d_max)
+
+
+def space_time_bound(
+    along: Along, movers: list[DynamicObstacle], t: FloatArray, start_s: float
+) -> FloatArray | None:
+    """``σ_max(t_k)`` [m]: how far along the path the vehicle's centre may be at each time so that its
+    footprint stays clear of every moving obstacle's box (follow or yield). Obstacles behind the ego
+    at the start are not followed: one coming from behind is the follower's to avoid (braking for it as
+    it overtakes would invite a rear-end collision)."""
+    near, states = along.near(movers, t)
+    if near.size == 0:
+        return None
+    boxes = frenet_extents(along.ref, [movers[k] for k in near], [states[k] for k in near])  # (K, T) each
+    s_min, s_max = boxes[0], boxes[1]
+    ahead = (0.5 * (s_min[:, :1] + s_max[:, :1]) > start_s) | (s_min[:, :1] > start_s)
+    hit = along.meets(boxes)
+    sigma = along.path.sigma
+    first = np.where(hit.any(axis=2), np.argmax(hit, axis=2), -1)
+    limit = np.where(first > 0, sigma[np.maximum(first - 1, 0)], np.where(first == 0, 0.0, np.inf))
+    limit = np.where(ahead, limit, np.inf)
+    return np.asarray(limit.min(axis=0))
+
+
+def frenet_extents(
+    ref: ReferenceLine, movers: list[DynamicObstacle], states: list[FloatArray]
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """``(s_min, s_max, d_min, d_max)`` [m], each shape (K, T): the Frenet boxes of the K obstacles at their
+    states ``states[k]`` (shape (T, 3)), from corners and edge midpoints mapped by TransF-κ in one call."""
+    outlines = []
+    for ob, st in zip(movers, states, strict=True):
+        corners = box_corners(st[:, 0], st[:, 1], st[:, 2], ob.length, ob.width)  # (T, 4, 2)
+        outlines.append(np.concatenate((corners, 0.5 * (corners + np.roll(corners, -1, axis=1))), axis=1))
+    pts = np.stack(outlines)  # (K, T, 8, 2)
+    fr = to_frenet(ref, pts.reshape(-1, 2))
+    s_box = fr.s.reshape(pts.shape[:3])
+    d_box = fr.d.reshape(pts.shape[:3])
+    return s_box.min(axis=2), s_box.max(axis=2), d_box.min(axis=2), d_box.max(axis=2)
+
+
+def _behind(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float) -> NDArray[np.bool_]:
+    """Which of ``movers`` are behind the ego at the start: the middle of their Frenet box at ``t = 0`` at
+    or behind the ego's ``start_s`` [m] — exactly those :func:`space_time_bound` does not follow."""
+    if not movers:
+        return np.zeros(0, dtype=bool)
+    s_min, s_max, _, _ = frenet_extents(ref, movers, [prediction_at(ob, np.zeros(1)) for ob in movers])
+    ahead = (0.5 * (s_min[:, 0] + s_max[:, 0]) > start_s) | (s_min[:, 0] > start_s)
+    return np.asarray(~ahead, dtype=bool)
+
+
+def followers(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float) -> list[DynamicObstacle]:
+    """The moving obstacles behind the ego at the start (see :func:`_behind`)."""
+    return [ob for ob, behind in zip(movers, _behind(ref, movers, start_s), strict=True) if behind]
+
+
+def follower_bound(
+    along: Along,
+    movers: list[DynamicObstacle],
+    t: FloatArray,
+    headway: float,
+    start_s: float,
+    ego_speed: float,
+) -> FloatArray | None:
+    """``σ_min(t_k)`` [m] at the knot times ``t`` (evenly spaced) [s]: how far along the path the
+    vehicle's centre must be for its footprint to be ahead of the boxes of the moving obstacles behind it
+    at the start (:func:`followers`) at every time in ``[t_k, t_k + headway]`` (``headway`` [s] rounded up
+    to the knot spacing); ``−inf`` where free, ``None`` when free throughout.
+
+    A vehicle bounds from the first time its box meets the footprint anywhere along the path, if it is
+    then behind where the ego would be at its current speed ``ego_speed`` [m/s], and for as long as it
+    keeps meeting it: one that enters the path ahead (a cut-in after overtaking) or comes back after
+    leaving it is not chased. At each time the bound is the knot after the last one whose footprint it
+    meets.
+    """
+    window = int(np.ceil(headway / float(t[1] - t[0]) - 1e-9))  # steps of the headway; t: ≥ 2 times
+    t = t[0] + (t[1] - t[0]) * np.arange(t.size + window)  # the knots and the headway beyond them
+    near, states = along.near(movers, t)
+    chosen = near[_behind(along.ref, [movers[k] for k in near], start_s)]
+    if chosen.size == 0:
+        return None
+    boxes = frenet_extents(along.ref, [movers[k] for k in chosen], [states[k] for k in chosen])
+    s_max = boxes[1]
+    hit = along.meets(boxes)  # (K, T, knots)
+    meets = hit.any(axis=2)  # (K, T)
+    first = np.argmax(meets, axis=1)
+    rows = np.arange(meets.shape[0])
+    behind_then = s_max[rows, first] <= start_s + max(ego_speed, 0.0) * t[first]
+    after = np.arange(meets.shape[1])[None, :] >= first[:, None]
+    active = meets & ~(np.cumsum(after & ~meets, axis=1) > 0) & behind_then[:, None]  # the first run only
+    if not active.any():
+        return None
+    last = hit.shape[2] - 1 - np.argmax(hit[..., ::-1], axis=2)  # last knot met, (K, T)
+    at = np.where(active, along.path.sigma[np.minimum(last + 1, hit.shape[2] - 1)], -np.inf).max(axis=0)
+    bound = sliding_window_view(at, window + 1).max(axis=1)  # the most ahead over each [t_k, t_k + headway]
+    return np.asarray(bound)

@@ -1,0 +1,62 @@
+"""The stages of a plan, named once, and the timer that measures them against the time budget.
+
+``PlanDiagnostics.timing_ms`` has one entry [ms] per stage that ran (:data:`STAGES`, in that order of
+execution) and :data:`TOTAL`: the wall time of the whole plan from its first line to its return, which
+is at least the sum of the stages (what runs between them is counted too).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Final, Literal, get_args
+
+Stage = Literal["reference", "candidates", "lateral", "speed", "trajectory", "fallback"]
+#: every stage of a plan, in the order they run: the reference line and the ego's start on it; the
+#: candidates, their collision check and the choice; the lateral bounds and QP; the speed profile; the
+#: trajectory sampled and checked; the fallback's own work (choosing a braking trajectory)
+STAGES: Final[tuple[Stage, ...]] = get_args(Stage)
+#: the key of the plan's wall time in ``timing_ms``
+TOTAL: Final = "total"
+
+
+class StageTimer:
+    """Wall time per stage [ms] and of the whole plan since the timer was made, against a budget [ms]."""
+
+    def __init__(self, budget_ms: float | None = None) -> None:
+        self._t0 = time.perf_counter()
+        self._budget_ms = budget_ms
+        self._ms: dict[Stage, float] = {}
+
+    def elapsed_ms(self) -> float:
+        """Wall time since the timer was made [ms]."""
+        return 1e3 * (time.perf_counter() - self._t0)
+
+    def remaining_s(self) -> float | None:
+        """Budget left [s] (at least 1 ms), or None without a budget."""
+        if self._budget_ms is None:
+            return None
+        return max(1e-3 * self._budget_ms - (time.perf_counter() - self._t0), 1e-3)
+
+    def overrun(self, stage: Stage) -> str | None:
+        """Why the plan must stop after ``stage``, if the budget is spent; else None."""
+        elapsed = self.elapsed_ms()
+        if self._budget_ms is None or elapsed <= self._budget_ms:
+            return None
+        return f"time budget of {self._budget_ms:g} ms spent after the {stage} stage ({elapsed:.0f} ms)"
+
+    @contextmanager
+    def stage(self, name: Stage) -> Iterator[None]:
+        """Time the block as (part of) stage ``name``."""
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self._ms[name] = self._ms.get(name, 0.0) + 1e3 * (time.perf_counter() - t0)
+
+    def timing_ms(self) -> dict[str, float]:
+        """Every stage that ran [ms], then :data:`TOTAL`: the wall time since the timer was made [ms]."""
+        out: dict[str, float] = {name: self._ms[name] for name in STAGES if name in self._ms}
+        out[TOTAL] = self.elapsed_ms()
+        return out

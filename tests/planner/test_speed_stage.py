@@ -1,0 +1,114 @@
+"""The speed stage: its grid and limit, the analytic profiles, and diagnostics that say which profile
+the trajectory samples while keeping the SQP's own account of its solve."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planner.pipeline import plan
+from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
+from planner.reference import build_reference
+from planner.roads import straight
+from planner.speed import ProfileKind, braking, profile_grid, speed_limit, target_speed
+from planner.trajectory import frenet_path
+
+ROAD = straight(300.0, step=5.0)
+
+
+def _wall(x: float) -> PolygonObstacle:
+    return PolygonObstacle("wall", np.array([[x, -4.0], [x + 2.0, -4.0], [x + 2.0, 4.0], [x, 4.0]]))
+
+
+def _towards_a_wall(speed: float, gap: float) -> PlanningProblem:
+    """The ego at ``speed`` [m/s], its front ``gap`` [m] before a wall across the road (at
+    ``_wall_x(gap)``)."""
+    ego = Ego(10.0, 0.0, 0.0, speed)
+    wall = _wall(_wall_x(gap))
+    return PlanningProblem(ROAD, Lane(3.5, 3.5), ego, (wall,), Vehicle(), Options(target_speed=speed))
+
+
+def _wall_x(gap: float) -> float:
+    return 10.0 + 0.5 * Vehicle().length + gap
+
+
+@pytest.mark.parametrize(
+    ("horizon", "dt", "steps"), [(8.0, 0.1, 80), (8.0, 0.05, 80), (2.0, 0.5, 4), (0.1, 1.0, 1)]
+)
+def test_the_profile_grid_covers_the_horizon_in_at_most_the_configured_steps(
+    horizon: float, dt: float, steps: int
+) -> None:
+    n, step = profile_grid(Options(horizon_time=horizon, dt=dt))
+    assert n == steps
+    assert n * step == pytest.approx(horizon)
+
+
+def test_the_speed_limit_is_the_target_within_the_curvature_limit_and_reaches_either_side() -> None:
+    problem = PlanningProblem(
+        ROAD, Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, 5.0), options=Options(target_speed=12.0)
+    )
+    ref = build_reference(ROAD)
+    s = np.linspace(0.0, 100.0, 201)
+    bend = np.where((s > 50.0) & (s < 51.0), 0.1, 0.0)  # on a straight reference d″ is the curvature
+    path = frenet_path(ref, s, 0.0 * s, 0.0 * s, bend)
+    limit = speed_limit(path, problem)
+    assert target_speed(problem) == 12.0
+    assert limit[0] == pytest.approx(12.0) and limit[-1] == pytest.approx(12.0)
+    curved = np.abs(path.curvature) > 1e-6
+    lateral = np.sqrt(0.9 * problem.vehicle.max_lateral_acceleration / np.abs(path.curvature[curved]))
+    assert np.all(limit[curved] <= lateral + 1e-9)
+    assert limit.min() == pytest.approx(lateral.min()) and lateral.min() < 12.0
+    # each knot's limit also holds limit_reach (2 m) either side of it
+    for sigma, v in zip(path.sigma[curved], lateral, strict=True):
+        assert np.all(limit[np.abs(path.sigma - sigma) <= 2.0 - 1e-9] <= v + 1e-9)
+
+
+@pytest.mark.parametrize("keep_speed", [False, True])
+def test_the_analytic_profiles_say_what_they_are(keep_speed: bool) -> None:
+    problem = PlanningProblem(ROAD, Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, 12.0, acceleration=1.0))
+    ref = build_reference(ROAD)
+    s = np.linspace(10.0, 290.0, 100)
+    path = frenet_path(ref, s, 0.0 * s, 0.0 * s, 0.0 * s)
+    profile = braking(path, problem, 80, 0.1, keep_speed=keep_speed)
+    assert profile.kind is (ProfileKind.KEEP_SPEED if keep_speed else ProfileKind.BRAKING)
+    assert profile.t[-1] == pytest.approx(8.0) and profile.s[0] == 0.0 and profile.v[0] == 12.0
+    if keep_speed:  # the acceleration released, then the speed kept
+        assert profile.a[-1] == pytest.approx(0.0) and profile.v[-1] > 12.0
+    else:
+        assert profile.v[-1] == pytest.approx(0.0, abs=1e-9)
+        assert np.all(np.abs(np.diff(profile.a)) <= 30.0 * 0.1 + 1e-9)  # the emergency jerk
+
+
+def test_a_plan_that_passes_its_checks_uses_the_optimised_profile() -> None:
+    result = plan(
+        PlanningProblem(ROAD, Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, 8.0), options=Options(target_speed=10.0))
+    )
+    assert result.status == "ok"
+    assert result.diagnostics.speed_profile is ProfileKind.OPTIMISED
+    assert result.diagnostics.speed.converged and result.diagnostics.speed.iterations > 0
+
+
+def test_a_stop_the_optimised_profile_overshoots_is_braked_for_and_says_so() -> None:
+    """Too close to a wall for the comfortable profile: the SQP's (soft) stop is overshot, full braking is
+    the answer, and the diagnostics keep the SQP's own solve (it ran: iterations, time) beside the
+    profile actually used."""
+    for speed, gap in ((10.0, 10.0), (15.0, 22.0)):
+        result = plan(_towards_a_wall(speed, gap))
+        diag = result.diagnostics
+        assert result.status == "stopped", result.message
+        assert diag.speed_profile is ProfileKind.BRAKING
+        assert diag.speed.usable
+        assert diag.speed.iterations > 0 and diag.speed.solve_time_ms > 0.0
+        assert "braking profile" not in diag.speed.message
+        assert np.all(np.diff(result.trajectory.v) <= 1e-9)  # braking all the way
+        assert (
+            result.trajectory.x.max() + 0.5 * Vehicle().length < _wall(0.0).polygon[0][0] + 10.0 + 2.25 + 30
+        )
+
+
+def test_a_fallback_that_brakes_keeps_the_sqps_own_solve_info() -> None:
+    result = plan(_towards_a_wall(15.0, 10.0))  # braking distance ≈ 19 m: the wall cannot be avoided
+    assert result.status == "fallback", result.message
+    assert result.diagnostics.speed_profile is ProfileKind.BRAKING
+    assert result.diagnostics.speed.iterations > 0  # the SQP ran; its info is not a braking profile's
+    assert "braking profile" not in result.diagnostics.speed.message

@@ -1,0 +1,184 @@
+"""The trajectory checks as typed violations: each kind from a trajectory that breaks exactly that check,
+with the first time it happens and the message answers report."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from planner.problem import DynamicObstacle, Ego, Lane, Obstacle, PlanningProblem, PolygonObstacle, Vehicle
+from planner.reference import ReferenceLine, build_reference
+from planner.roads import arc, straight
+from planner.st_bounds import static_shapes
+from planner.trajectory import Trajectory, frenet_path, sample
+from planner.validation import HITS, Violation, ViolationKind, trajectory_violations
+
+DT, SPEED = 0.1, 5.0
+STRAIGHT = build_reference(straight(200.0, step=1.0))
+BEND = build_reference(arc(30.0, 2.0, step=0.5))  # radius 30 m: κ = 1/30 1/m
+
+
+def _along(ref: ReferenceLine, speed: float = SPEED, steps: int = 50) -> Trajectory:
+    """A clean trajectory along the reference from ``s = 10 m`` at a constant ``speed`` [m/s]."""
+    s = np.linspace(10.0, 10.0 + speed * steps * DT + 5.0, 200)
+    path = frenet_path(ref, s, 0.0 * s, 0.0 * s, 0.0 * s)
+    t = np.arange(steps + 1) * DT
+    return sample(path, t, speed * t, np.full(steps + 1, speed), np.zeros(steps + 1), np.zeros(steps), DT)
+
+
+def _problem(ref: ReferenceLine, traj: Trajectory, *obstacles: Obstacle, **vehicle: float) -> PlanningProblem:
+    ego = Ego(x=float(traj.x[0]), y=float(traj.y[0]), heading=float(traj.heading[0]), speed=float(traj.v[0]))
+    return PlanningProblem(ref.points, Lane(3.5, 3.5), ego, obstacles, Vehicle(**vehicle))
+
+
+def _violations(problem: PlanningProblem, traj: Trajectory) -> list[Violation]:
+    ref = build_reference(problem.reference_line)
+    return trajectory_violations(ref, problem, traj, static_shapes(problem))
+
+
+def _set(values: np.ndarray, i: int, value: float) -> np.ndarray:
+    out = values.copy()
+    out[i] = value
+    return out
+
+
+def _loop(radius: float = 1.0) -> Trajectory:
+    """A circle from the ego at (10, 0) back through its start and on: it crosses itself. Reported
+    heading, curvature and s are those of driving straight on; the steps keep ``v·dt``."""
+    n = 60
+    theta = np.linspace(0.0, 2.0 * np.pi * 1.2, n + 1)
+    x, y = 10.0 + radius * np.sin(theta), radius - radius * np.cos(theta)
+    step = 2.0 * radius * np.sin(0.5 * (theta[1] - theta[0]))
+    t = np.arange(n + 1) * DT
+    v = np.full(n + 1, step / DT)
+    zero = np.zeros(n + 1)
+    return Trajectory(t=t, x=x, y=y, heading=zero, curvature=zero, v=v, a=zero, s=10.0 + v * t, d=y)
+
+
+def _drift(to: float = 4.0) -> Trajectory:
+    """Straight on from the ego while drifting to ``y = to`` [m]: out of the lane, each step ``v·dt``."""
+    base = _along(STRAIGHT)
+    y = np.linspace(0.0, to, base.size)
+    dy = np.diff(y)
+    dx = np.sqrt((SPEED * DT) ** 2 - dy**2)
+    x = base.x[0] + np.concatenate(([0.0], np.cumsum(dx)))
+    return replace(base, x=x, y=y, s=x, d=y)
+
+
+def _crossing(t_in: float) -> DynamicObstacle:
+    """A car crossing the road at x = 25 m, in the way of the clean trajectory from ``t_in`` [s] on."""
+    t = np.array([0.0, t_in, t_in + 0.5, 10.0])
+    y = np.array([-30.0, -1.2, 0.0, 0.0])
+    return DynamicObstacle(
+        "crossing", 4.5, 1.8, np.column_stack((t, np.full(4, 32.0), y, np.full(4, np.pi / 2)))
+    )
+
+
+def _box(x0: float, x1: float, y0: float, y1: float) -> np.ndarray:
+    return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+
+
+CLEAN = _along(STRAIGHT)
+
+
+def _case(kind: ViolationKind) -> tuple[PlanningProblem, Trajectory]:
+    """A problem and a trajectory that breaks exactly the check ``kind``."""
+    if kind is ViolationKind.START:
+        shifted = replace(CLEAN, x=CLEAN.x + 1.0)
+        return _problem(STRAIGHT, CLEAN), shifted
+    if kind is ViolationKind.KAPPA_D:
+        bend = _along(BEND)
+        return _problem(BEND, bend), replace(bend, d=_set(bend.d, 20, 31.0))  # past the centre of curvature
+    if kind is ViolationKind.CURVATURE:
+        sharp = replace(CLEAN, curvature=_set(CLEAN.curvature, 20, 0.3))  # 0.3 × 25 = 7.5 m/s² allowed here
+        return _problem(STRAIGHT, CLEAN, max_lateral_acceleration=10.0), sharp
+    if kind is ViolationKind.LATERAL_ACCELERATION:
+        bend = _along(BEND)  # 25 / 30 ≈ 0.83 m/s²
+        return _problem(BEND, bend, max_lateral_acceleration=0.5), bend
+    if kind is ViolationKind.ACCELERATION:
+        return _problem(STRAIGHT, CLEAN), replace(CLEAN, a=_set(CLEAN.a, 20, 3.0))
+    if kind is ViolationKind.STEP:
+        return _problem(STRAIGHT, CLEAN), replace(CLEAN, v=_set(CLEAN.v, 20, SPEED + 2.0))
+    if kind is ViolationKind.S_DECREASES:
+        return _problem(STRAIGHT, CLEAN), replace(CLEAN, s=_set(CLEAN.s, 20, CLEAN.s[19]))
+    if kind is ViolationKind.SELF_INTERSECTS:
+        loop = _loop()
+        return _problem(STRAIGHT, loop), loop
+    if kind is ViolationKind.LANE:
+        return _problem(STRAIGHT, CLEAN), _drift()
+    if kind is ViolationKind.HITS_OBSTACLE:
+        parked = PolygonObstacle("parked", _box(30.0, 34.0, 0.5, 2.0))
+        return _problem(STRAIGHT, CLEAN, parked), CLEAN
+    return _problem(STRAIGHT, CLEAN, _crossing(3.0)), CLEAN
+
+
+def test_the_clean_trajectories_pass_every_check() -> None:
+    for ref, traj in ((STRAIGHT, CLEAN), (BEND, _along(BEND))):
+        assert _violations(_problem(ref, traj), traj) == []
+
+
+@pytest.mark.parametrize("kind", list(ViolationKind), ids=lambda k: k.value)
+def test_each_check_gives_its_own_kind(kind: ViolationKind) -> None:
+    problem, traj = _case(kind)
+    assert [v.kind for v in _violations(problem, traj)] == [kind]
+
+
+#: the text of each kind in answers (their ``message`` embeds it: it must not change)
+MESSAGES = {
+    ViolationKind.START: "does not start at the ego",
+    ViolationKind.KAPPA_D: "1 − κ·d ≤ 0 at some point",
+    ViolationKind.CURVATURE: "curvature 0.300 1/m above max_curvature",
+    ViolationKind.LATERAL_ACCELERATION: "lateral acceleration 0.83 m/s² above the limit",
+    ViolationKind.ACCELERATION: "acceleration outside the limits",
+    ViolationKind.STEP: "positions inconsistent with v·dt",
+    ViolationKind.S_DECREASES: "s does not increase while moving",
+    ViolationKind.SELF_INTERSECTS: "self-intersects",
+    ViolationKind.LANE: "footprint leaves the lane",
+    ViolationKind.HITS_OBSTACLE: "footprint hits obstacle parked",
+    ViolationKind.HITS_MOVING_OBSTACLE: "footprint hits moving obstacle crossing",
+}
+
+
+@pytest.mark.parametrize("kind", list(ViolationKind), ids=lambda k: k.value)
+def test_messages_are_rendered_from_the_record_as_answers_word_them(kind: ViolationKind) -> None:
+    problem, traj = _case(kind)
+    (violation,) = _violations(problem, traj)
+    assert violation.message == str(violation) == f"{violation}" == MESSAGES[kind]
+
+
+def test_a_violation_says_when_it_first_happens_and_what_it_hit() -> None:
+    problem, traj = _case(ViolationKind.ACCELERATION)
+    assert _violations(problem, traj)[0].t == pytest.approx(traj.t[20])
+    problem, traj = _case(ViolationKind.START)
+    assert _violations(problem, traj)[0].t == 0.0
+    problem, traj = _case(ViolationKind.SELF_INTERSECTS)
+    assert _violations(problem, traj)[0].t is None  # a crossing has no one time
+    problem, traj = _case(ViolationKind.HITS_OBSTACLE)
+    (hit,) = _violations(problem, traj)
+    # the footprint's front reaches the parked car's rear edge (x = 30 m) at 0.1 s steps
+    assert hit.obstacle_id == "parked" and hit.t is not None
+    assert traj.x[traj.t == hit.t][0] + 2.25 >= 30.0 > traj.x[traj.t < hit.t].max() + 2.25
+    # the crossing car comes into the lane just before t_in, while the footprint spans its x from 3.8 s
+    # to 5.0 s: the hit starts when it arrives
+    problem, traj = _case(ViolationKind.HITS_MOVING_OBSTACLE)
+    times = []
+    for t_in in (4.2, 4.6):
+        (hit,) = _violations(replace(problem, obstacles=(_crossing(t_in),)), traj)
+        assert hit.obstacle_id == "crossing" and hit.t is not None
+        assert t_in - 0.5 < hit.t <= t_in
+        times.append(hit.t)
+    assert times[0] < times[1]
+
+
+def test_a_moving_obstacle_that_stays_put_is_checked_as_static() -> None:
+    parked = DynamicObstacle("parked car", 4.0, 1.8, np.array([[0.0, 32.0, 1.0, 0.0], [8.0, 32.0, 1.0, 0.0]]))
+    problem = _problem(STRAIGHT, CLEAN, parked)
+    (hit,) = _violations(problem, CLEAN)
+    assert (hit.kind, hit.obstacle_id) == (ViolationKind.HITS_OBSTACLE, "parked car")
+
+
+def test_the_hit_kinds_are_the_collisions() -> None:
+    assert {ViolationKind.HITS_OBSTACLE, ViolationKind.HITS_MOVING_OBSTACLE} == HITS
+    assert all(Violation(kind).obstacle_id is None for kind in ViolationKind)
