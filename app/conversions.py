@@ -33,10 +33,11 @@ from app.models.planning import (
 from planner import problem as pp
 from planner.candidates import CandidateSet
 from planner.ego import EgoFrenet
-from planner.pipeline import PlanResult
-from planner.pipeline import Status as PlanStatus
 from planner.reference import ReferenceLine
+from planner.result import PlanResult
+from planner.result import Status as PlanStatus
 from planner.roads import demo_problem
+from planner.speed import ProfileKind
 from solvers.result import SolverStatus
 
 # -- requests ----------------------------------------------------------------------------------
@@ -216,7 +217,9 @@ def plan_data(result: PlanResult) -> dict[str, Any]:
         },
         "speed": {
             "status": SolverStatus(diag.speed.status).value,
+            "iterations": int(diag.speed.iterations),
             "solve_time_ms": float(diag.speed.solve_time_ms),
+            "profile": ProfileKind(diag.speed_profile).value,
         },
         "timing_ms": dict(zip(STAGES, timing, strict=True)),
     }

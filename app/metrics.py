@@ -25,7 +25,7 @@ from prometheus_client.exposition import choose_encoder
 from prometheus_client.multiprocess import MultiProcessCollector
 
 from app.models.plan import STAGES
-from planner.pipeline import Status as PlanStatus
+from planner.result import Status as PlanStatus
 
 #: environment variable of prometheus-client's multiprocess mode
 MULTIPROC_ENV = "PROMETHEUS_MULTIPROC_DIR"

@@ -36,7 +36,7 @@ from planner.validation import Violation, trajectory_violations
 from solvers.result import SolveInfo
 from solvers.speed_problem import SpeedResult
 
-__all__ = ["PlanDiagnostics", "PlanResult", "Status", "plan"]
+__all__ = ["plan"]
 
 
 def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> PlanResult:

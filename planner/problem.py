@@ -11,7 +11,7 @@ per-point lane widths match the reference line; what they refuse raises
 (``ego.speed``, ``lane.left_width.3``, ``vehicle.max_deceleration``, ``options.dt``,
 ``obstacles.2.circle.radius``). Everything they accept the planner handles: a vanishing obstacle is a
 point, a braking distance too long to matter is capped. The ranges accepted include every request the
-HTTP API (``app.schemas``) accepts, and every state the simulator (``planner.sim``) reaches. The
+HTTP API (``app.models``) accepts, and every state the simulator (``planner_tools.sim``) reaches. The
 reference line's points are checked by :func:`~planner.reference.build_reference`, when planning.
 """
 

@@ -61,9 +61,10 @@ from planner.candidates import CandidateSet
 from planner.collision import box_corners, footprints, obstacle_shape, prediction_at
 from planner.errors import InvalidInputError, PlannerError
 from planner.frenet import to_frenet
-from planner.pipeline import PlanResult, plan
+from planner.pipeline import plan
 from planner.problem import DynamicObstacle, Ego, Obstacle, PlanningProblem, Vehicle
 from planner.reference import FloatArray, ReferenceLine, build_reference, widths_at
+from planner.result import PlanResult
 from planner.trajectory import Trajectory
 
 StepStatus = Literal["ok", "stopped", "fallback", "error"]

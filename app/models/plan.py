@@ -14,18 +14,23 @@ from pydantic.json_schema import SkipJsonSchema
 
 from app.models.candidates import Candidate
 from app.models.common import ResponseModel
-from planner.pipeline import Status as PlanStatus
+from planner.result import Status as PlanStatus
+from planner.speed import ProfileKind
+from planner.timing import STAGES as PLANNER_STAGES
+from planner.timing import TOTAL
 from solvers.result import SolverStatus
 
-#: the planner's timed stages, in the order of ``diagnostics.timing_ms``
-STAGES = ("total", "reference", "candidates", "lateral", "speed")
-#: what each stage covers (every stage of :data:`STAGES` needs one)
+#: the keys of ``diagnostics.timing_ms``: the plan's wall time, then the planner's stages in their order
+STAGES = (TOTAL, *PLANNER_STAGES)
+#: what each key covers (every one of :data:`STAGES` needs one)
 STAGE_DESCRIPTIONS = {
-    "total": "All stages.",
+    TOTAL: "Wall time of the whole plan, from its start to its answer (at least the sum of the stages).",
     "reference": "Reference line and the ego's Frenet state.",
     "candidates": "Candidate paths, their collision check and the choice.",
     "lateral": "Lateral bounds and the lateral QP.",
-    "speed": "Speed profile.",
+    "speed": "Speed profile: space-time bounds, the SQP and any analytic profile replacing it.",
+    "trajectory": "Sampling the trajectory at `options.dt` and its checks.",
+    "fallback": "The fallback's own work: braking trajectories tried and checked (0 unless `fallback`).",
 }
 
 
@@ -63,10 +68,18 @@ class LateralSolveInfo(ResponseModel):
 
 
 class SpeedSolveInfo(ResponseModel):
-    """How the speed profile went (`failed` when it did not run because the lateral QP failed)."""
+    """How the speed SQP went (`failed` when it did not run because an earlier stage failed), and which
+    profile the trajectory follows: the SQP's own status is kept when an analytic profile replaced it."""
 
     status: SolverStatus
+    iterations: int = Field(description="QPs the SQP solved (0 when it did not run).")
     solve_time_ms: float = Field(description="Wall time of the solve [ms].")
+    profile: ProfileKind = Field(
+        description="The speed profile the trajectory follows: `optimised` (the SQP's), `braking` (full "
+        "braking within the jerk limit: a fallback, or the SQP's profile went past a stop) or "
+        "`keep_speed` (the acceleration released, the speed kept: a fallback hit from behind when "
+        "braking)."
+    )
 
 
 if TYPE_CHECKING:  # a model built from STAGES has no static fields for the type checker
@@ -74,7 +87,7 @@ if TYPE_CHECKING:  # a model built from STAGES has no static fields for the type
 else:
     PlanTiming = create_model(
         "PlanTiming",
-        __doc__="Wall time of the planner's stages [ms]; 0 for a stage that did not run.",
+        __doc__="Wall time of the plan and of each of its stages [ms]; 0 for a stage that did not run.",
         __base__=ResponseModel,
         __module__=__name__,
         **{stage: (float, Field(description=STAGE_DESCRIPTIONS[stage])) for stage in STAGES},

@@ -9,7 +9,7 @@ from app.errors import ERROR_RESPONSES
 from app.models.candidates import CandidatesResponse
 from app.routes.examples import PlanningBody
 from planner.candidates import generate_candidates
-from planner.ego import ego_frenet
+from planner.ego import start_state
 from planner.reference import build_reference
 
 router = APIRouter(prefix="/v1", tags=["candidates"], responses=ERROR_RESPONSES)
@@ -26,7 +26,7 @@ def candidates(
     """`options.num_candidates` lateral paths from the ego (the points each keeps) + diagnostics."""
     problem = to_problem(body)
     ref = build_reference(problem.reference_line)
-    start = ego_frenet(ref, problem.ego)
+    start = start_state(ref, problem)  # the start /v1/plan uses, so the candidates are the plan's
     cs = generate_candidates(
         ref, problem.lane, problem.ego, problem.vehicle, problem.options, start=start
     )

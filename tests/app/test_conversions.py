@@ -11,7 +11,8 @@ import pytest
 
 from app.conversions import demo_request, from_problem, plan_data, to_problem
 from app.models.plan import STAGES, PlanResponse
-from planner.pipeline import PlanResult, plan
+from planner.pipeline import plan
+from planner.result import PlanResult
 from planner.roads import demo_problem
 
 

@@ -25,7 +25,8 @@ def test_metrics_count_plans_and_requests(client: TestClient, demo: dict[str, An
         return name, frozenset(labels.items())
 
     before = _samples(client)
-    assert client.post("/v1/plan", json=demo).json()["status"] == "ok"
+    answer = client.post("/v1/plan", json=demo).json()
+    assert answer["status"] == "ok"
     assert client.post("/v1/plan", content=b"[").status_code == 422
     after = _samples(client)
 
@@ -35,7 +36,10 @@ def test_metrics_count_plans_and_requests(client: TestClient, demo: dict[str, An
     assert delta("kappa_plans_total", status="ok") == 1
     assert delta("kappa_plans_total", status="fallback") == 0
     assert key("kappa_plans_total", status="stopped") in after  # every status is there from the start
-    for stage in STAGES:
+    ran = {stage for stage, ms in answer["diagnostics"]["timing_ms"].items() if ms > 0}
+    assert ran == set(STAGES) - {"fallback"}  # an ok plan has no fallback stage, it has every other
+    assert delta("kappa_plan_stage_duration_seconds_count", stage="fallback") == 0
+    for stage in ran:
         assert delta("kappa_plan_stage_duration_seconds_count", stage=stage) == 1
         assert delta("kappa_plan_stage_duration_seconds_bucket", stage=stage, le="+Inf") == 1
         assert delta("kappa_plan_stage_duration_seconds_sum", stage=stage) > 0

@@ -111,7 +111,7 @@ def test_a_plan_line_has_its_status_and_stage_timings(
     assert (line["method"], line["path"], line["status"]) == ("POST", "/v1/plan", 200)
     assert line["request_id"] == r.headers["X-Request-ID"]
     assert line["plan_status"] == r.json()["status"] == "ok"
-    assert set(line["timing_ms"]) >= set(STAGES)
+    assert set(line["timing_ms"]) == set(STAGES) - {"fallback"}  # the stages that ran, and the total
     total = r.json()["diagnostics"]["timing_ms"]["total"]
     assert line["timing_ms"]["total"] == pytest.approx(total, abs=1e-3)
 

@@ -10,4 +10,6 @@ def test_the_timing_model_has_one_field_per_stage() -> None:
     assert all(PlanTiming.model_fields[s].description == STAGE_DESCRIPTIONS[s] for s in STAGES)
     schema = PlanDiagnostics.model_json_schema()["$defs"]["PlanTiming"]
     assert schema["required"] == list(STAGES)
-    assert schema["description"] == "Wall time of the planner's stages [ms]; 0 for a stage that did not run."
+    assert schema["description"] == (
+        "Wall time of the plan and of each of its stages [ms]; 0 for a stage that did not run."
+    )

@@ -7,8 +7,14 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+
+from app.conversions import to_problem
+from app.models.planning import PlanningRequest
+from planner.ego import ego_frenet, start_state
+from planner.reference import build_reference
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "data" / "commonroad"
 
@@ -83,3 +89,20 @@ def test_real_scenario_requests(client: TestClient) -> None:
         r = client.post("/v1/candidates", json=request)
         assert r.status_code == 200, (path.name, r.text[:500])
         assert len(r.json()["candidates"]) == 32
+
+
+def test_candidates_are_the_plans_where_the_start_curvature_is_clipped(
+    client: TestClient, demo: dict[str, Any]
+) -> None:
+    """An ego of unknown curvature in the U-turn, too fast for the road's curvature: the plan takes the
+    curvature it can drive at its speed, and /v1/candidates starts from that same state."""
+    demo["ego"].pop("curvature", None)
+    demo["ego"].update(x=8.0, y=8.0, heading=np.pi / 2, speed=12.0)  # in the demo U-turn (radius 8 m)
+    demo["options"].update(num_candidates=8, return_candidates=True)
+    problem = to_problem(PlanningRequest.model_validate(demo))
+    ref = build_reference(problem.reference_line)
+    clipped, unclipped = start_state(ref, problem), ego_frenet(ref, problem.ego)
+    assert abs(clipped.ddd - unclipped.ddd) > 1e-3  # the clip matters here, so the test can fail
+    planned = client.post("/v1/plan", json=demo).json()["candidates"]
+    alone = client.post("/v1/candidates", json=demo).json()["candidates"]
+    assert alone == planned

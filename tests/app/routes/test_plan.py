@@ -22,6 +22,7 @@ from app.models.plan import STAGES, PlanResponse
 from app.routes import plan as plan_route
 from app.settings import Settings
 from planner.pipeline import plan
+from planner.speed import ProfileKind
 from solvers.result import SolveInfo, SolverStatus
 
 TRAJECTORY_KEYS = {"t", "x", "y", "heading", "curvature", "v", "a", "s", "d"}
@@ -138,7 +139,9 @@ def test_planning_failure_is_a_200_fallback(
         result = plan(problem)
         timing = {k: v for k, v in result.diagnostics.timing_ms.items() if k not in ("speed", "trajectory")}
         not_run = SolveInfo(SolverStatus.FAILED, 0, 0.0, None, "not run")
-        diagnostics = dataclasses.replace(result.diagnostics, speed=not_run, timing_ms=timing)
+        diagnostics = dataclasses.replace(
+            result.diagnostics, speed=not_run, timing_ms=timing, speed_profile=ProfileKind.BRAKING
+        )
         return dataclasses.replace(
             result, status="fallback", message="speed profile failed", diagnostics=diagnostics
         )
@@ -146,7 +149,8 @@ def test_planning_failure_is_a_200_fallback(
     monkeypatch.setattr(plan_route, "plan", failing)
     out = _plan(client, demo)
     assert (out["status"], out["message"]) == ("fallback", "speed profile failed")
-    assert out["diagnostics"]["speed"] == {"status": "failed", "solve_time_ms": 0.0}
+    speed = {"status": "failed", "iterations": 0, "solve_time_ms": 0.0, "profile": "braking"}
+    assert out["diagnostics"]["speed"] == speed
     assert out["diagnostics"]["timing_ms"]["speed"] == 0.0
     assert out["trajectory"]
 
