@@ -173,7 +173,9 @@ def test_a_reduced_scenario_becomes_a_valid_request_with_real_end_widths() -> No
     assert req.options.target_speed == 6.0
     assert [o.id for o in req.obstacles] == ["7", "8"]
     assert conv.goal["s_min"] == 17.5
-    assert plan(problem_from_json(conv.request)).status in ("ok", "stopped", "fallback")
+    # the converted request plans: the parked car narrows the short lane and the other car comes towards
+    # the ego in it, so the plan stops before them
+    assert plan(problem_from_json(conv.request)).status == "stopped"
 
 
 def test_a_request_json_takes_its_goal_from_the_index() -> None:
