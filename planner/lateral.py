@@ -104,7 +104,8 @@ def lateral_qp(
         ddd_lower=ddd_lower,
         ddd_upper=ddd_upper,
     )
-    return solver.solve(problem, max_iter=config.max_iter, time_limit_s=time_limit_s)
+    # cold: the answer must not depend on what this process planned before
+    return solver.solve(problem, max_iter=config.max_iter, time_limit_s=time_limit_s, warm_start=False)
 
 
 @dataclass(frozen=True)

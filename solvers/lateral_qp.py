@@ -419,6 +419,8 @@ class _Workspace:
     time_limit_s: float
     last_x: FloatArray | None = None
     last_y: FloatArray | None = None
+    #: OSQP adapted its step ``rho`` in an earlier solve (it keeps the adapted value for the next one)
+    rho_adapted: bool = False
 
 
 class LateralQPSolver:
@@ -478,11 +480,16 @@ class LateralQPSolver:
         return self._setup_count
 
     def _workspace(
-        self, problem: LateralQPProblem, q: FloatArray, lower: FloatArray, upper: FloatArray
+        self, problem: LateralQPProblem, q: FloatArray, lower: FloatArray, upper: FloatArray, *, fresh: bool
     ) -> tuple[_Workspace, float]:
-        """The set-up for ``problem``'s key with ``q, l, u`` in it, and the time a new set-up took [ms]."""
+        """The set-up for ``problem``'s key with ``q, l, u`` in it, and the time a new set-up took [ms].
+
+        With ``fresh``, a set-up whose ``rho`` OSQP adapted in an earlier solve is made anew: OSQP keeps
+        the adapted ``rho``, so the next solve would depend on the earlier ones."""
         key: _MatrixKey = (problem.n, problem.ds, problem.weights, problem.end_d is not None)
         workspace = self._workspaces.get(key)
+        if workspace is not None and fresh and workspace.rho_adapted:
+            workspace = None
         if workspace is not None:
             self._workspaces.move_to_end(key)
             workspace.solver.update(q=q, l=lower, u=upper)
@@ -490,7 +497,12 @@ class LateralQPSolver:
         start = time.perf_counter()
         P, A = _matrices(*key)
         solver = osqp.OSQP()
-        solver.setup(P, q, A, lower, upper, max_iter=4000, time_limit=_NO_TIME_LIMIT_S, **self._settings)
+        # Set up with q = 0, then q: OSQP's cost scaling is computed from the set-up's q, so a set-up made
+        # with one problem's q would make every later solve depend on which problem came first.
+        solver.setup(
+            P, np.zeros_like(q), A, lower, upper, max_iter=4000, time_limit=_NO_TIME_LIMIT_S, **self._settings
+        )
+        solver.update(q=q)
         self._setup_count += 1
         workspace = _Workspace(solver=solver, A=A, max_iter=4000, time_limit_s=_NO_TIME_LIMIT_S)
         self._workspaces[key] = workspace
@@ -514,7 +526,10 @@ class LateralQPSolver:
             max_iter: OSQP's iteration limit (≥ 1).
             warm_start: start from the previous solution of the same set-up. It pays when the knots sit
                 at the same ``s`` as last time (a re-solve of a slightly changed problem); when the grid
-                has moved by a fraction of a knot, a cold start can be faster.
+                has moved by a fraction of a knot, a cold start can be faster. A cold start (False)
+                starts from the clipped reference with zero duals and OSQP's initial ``rho`` (a set-up
+                whose ``rho`` was adapted is made anew): its result does not depend on what the solver
+                solved before.
 
         Raises:
             ValueError: ``problem`` is not a :class:`LateralQPProblem`, or a limit is not positive.
@@ -532,7 +547,7 @@ class LateralQPSolver:
 
         n = problem.n
         q, l, u = _vectors(problem)  # noqa: E741
-        workspace, setup_ms = self._workspace(problem, q, l, u)
+        workspace, setup_ms = self._workspace(problem, q, l, u, fresh=not warm_start)
         solver = workspace.solver
         if workspace.max_iter != max_iter or workspace.time_limit_s != limit:
             solver.update_settings(max_iter=max_iter, time_limit=limit)
@@ -544,6 +559,7 @@ class LateralQPSolver:
 
         results = solver.solve(raise_error=False)
         info = results.info
+        workspace.rho_adapted |= int(info.rho_updates) > 0
         status = _STATUS_MAP.get(int(info.status_val), SolverStatus.FAILED)
         message = f"osqp: {info.status}"
         x = np.asarray(results.x, dtype=np.float64)

@@ -241,6 +241,22 @@ def test_same_request_same_answer() -> None:
     np.testing.assert_allclose(first.trajectory.v, second.trajectory.v, atol=1e-6)
 
 
+def test_an_answer_does_not_depend_on_what_was_planned_before() -> None:
+    """The lateral QP starts cold in every plan (no warm start, no adapted ADMM step carried over): the
+    same request gets the same answer, iterations included, whatever the thread planned before it."""
+    ref_line = straight(120.0, step=1.0)
+    parked = PolygonObstacle("parked", ((40.0, 0.4), (45.0, 0.4), (45.0, 2.0), (40.0, 2.0)))
+    other = PlanningProblem(ref_line, Lane(3.5, 3.5), Ego(x=5.0, y=0.5, heading=0.0, speed=8.0), (parked,))
+    first = plan(demo_problem())
+    for speed in (2.0, 6.0, 10.0):  # other plans of the same sizes in between
+        plan(replace(other, ego=replace(other.ego, speed=speed)))
+    again = plan(demo_problem())
+    assert first.diagnostics.lateral_qp.iterations == again.diagnostics.lateral_qp.iterations
+    assert (first.status, first.message) == (again.status, again.message)
+    for name in ("x", "y", "heading", "v", "a", "s", "d"):
+        assert np.array_equal(getattr(first.trajectory, name), getattr(again.trajectory, name)), name
+
+
 def test_huge_and_far_obstacles_cost_only_what_lies_near_the_road(monkeypatch: pytest.MonkeyPatch) -> None:
     """A 20 km square around the road's far end and hundreds of far-off outlines: only the outline near
     the reference is mapped by TransF-κ, and the plan is the one without them where they are out of

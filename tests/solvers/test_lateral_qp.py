@@ -476,7 +476,7 @@ def test_agrees_with_another_backend(case: str) -> None:
     assert backend is not None
     n = problem.n
     x = _solve_with(backend, *build_qp_matrices(problem))
-    atol = 1e-3 if polished else 2e-3  # the ADMM iterate where polishing fails
+    atol = 1e-3 if polished else 5e-3  # the ADMM iterate where polishing fails (stopped at eps 1e-3)
     np.testing.assert_allclose(result.d, x[:n], atol=atol)
     np.testing.assert_allclose(result.dd, x[n : 2 * n], atol=atol)
     assert objective(problem, x[:n], x[n : 2 * n], x[2 * n :]) == pytest.approx(
