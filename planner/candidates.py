@@ -101,6 +101,14 @@ def path_length(ego: Ego, vehicle: Vehicle, options: Options) -> float:
     return min(max(options.min_path_length, options.horizon_time * fastest + braking), MAX_PATH_LENGTH)
 
 
+def horizon_reach(ego: Ego, vehicle: Vehicle, options: Options) -> float:
+    """The farthest the vehicle can drive within the horizon [m]: at full acceleration from the ego's
+    speed, never faster than the faster of that speed and ``max_speed``."""
+    horizon, speed = options.horizon_time, max(ego.speed, 0.0)
+    accelerating = speed * horizon + 0.5 * vehicle.max_acceleration * horizon**2
+    return min(accelerating, max(speed, vehicle.max_speed) * horizon, MAX_PATH_LENGTH)
+
+
 def braking_distance(speed: float, deceleration: float) -> float:
     """``v²/(2a)`` [m] from ``speed`` [m/s] at ``deceleration`` [m/s²] > 0, at most :data:`MAX_PATH_LENGTH`
     (never an overflow: ``v·(v/a)`` is at worst ``inf`` before the cap)."""
@@ -151,9 +159,11 @@ def generate_candidates(
     start = ego_frenet(ref, ego) if start is None else start
     check_ego_on_road(ref, lane, start)
     # Up to the reference's end, or past it along the end ray by the braking distance (a vehicle
-    # too fast to stop before the end still needs a path to brake on).
-    braking = braking_distance(ego.speed, vehicle.max_deceleration) + ego.speed * BRAKE_DELAY + vehicle.length
-    s_end = min(start.s + path_length(ego, vehicle, options), max(ref.length, start.s + braking))
+    # too fast to stop before the end still needs a path to brake on), as far as the horizon can reach
+    # (a weak brake's distance would spread the candidates' points thin across the road's curves).
+    braking = braking_distance(ego.speed, vehicle.max_deceleration) + ego.speed * BRAKE_DELAY
+    ahead = min(braking, horizon_reach(ego, vehicle, options)) + vehicle.length
+    s_end = min(start.s + path_length(ego, vehicle, options), max(ref.length, start.s + ahead))
     if ref.length - start.s < 1e-3:
         raise InvalidInputError("the ego is at or past the end of the reference line", field="ego")
     n, p = options.num_candidates, options.num_points

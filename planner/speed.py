@@ -68,9 +68,9 @@ class Profile:
         """The SQP's profile."""
         return cls(ProfileKind.OPTIMISED, result.t, result.s, result.v, result.a, result.jerk)
 
-    def sample(self, path: Path, dt: float) -> Trajectory:
-        """The trajectory along ``path`` every ``dt`` [s]."""
-        return sample(path, self.t, self.s - self.s[0], self.v, self.a, self.jerk, dt)
+    def sample(self, path: Path, ref: ReferenceLine, dt: float) -> Trajectory:
+        """The trajectory along ``path`` (on ``ref``) every ``dt`` [s]."""
+        return sample(path, self.t, self.s - self.s[0], self.v, self.a, self.jerk, dt, ref)
 
 
 @dataclass(frozen=True)

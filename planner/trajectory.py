@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.frenet import to_cartesian
+from planner.frenet import to_cartesian, to_frenet
 from planner.reference import FloatArray, ReferenceLine
 
 
@@ -92,6 +92,22 @@ class Trajectory:
         return int(self.t.shape[0])
 
 
+def _along_heading(path: Path, heading: FloatArray, sig: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``(x, y)`` [m] at arc lengths ``sig`` [m] within the path: cubic Hermite through the knots with the
+    unit tangents of ``heading`` [rad] (scaled by each interval's chord over its ``σ``, 1 for chords)."""
+    if path.sigma.shape[0] < 2 or path.length <= 0.0:
+        return np.interp(sig, path.sigma, path.x), np.interp(sig, path.sigma, path.y)
+    k = np.clip(np.searchsorted(path.sigma, sig, side="right") - 1, 0, path.sigma.shape[0] - 2)
+    h = path.sigma[k + 1] - path.sigma[k]
+    u = np.where(h > 0, (sig - path.sigma[k]) / np.where(h > 0, h, 1.0), 0.0)
+    h00, h10 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u
+    h01, h11 = -2 * u**3 + 3 * u**2, u**3 - u**2
+    c0, s0, c1, s1 = np.cos(heading[k]), np.sin(heading[k]), np.cos(heading[k + 1]), np.sin(heading[k + 1])
+    x = h00 * path.x[k] + h10 * h * c0 + h01 * path.x[k + 1] + h11 * h * c1
+    y = h00 * path.y[k] + h10 * h * s0 + h01 * path.y[k + 1] + h11 * h * s1
+    return x, y
+
+
 def sample(
     path: Path,
     t_knots: FloatArray,
@@ -100,9 +116,11 @@ def sample(
     a: FloatArray,
     jerk: FloatArray,
     dt: float,
+    ref: ReferenceLine,
 ) -> Trajectory:
     """Sample ``path`` every ``dt`` [s] over the profile's span; ``σ(t)`` from the profile's knots
-    ``(t, σ, v, a)`` and its constant jerks."""
+    ``(t, σ, v, a)`` and its constant jerks. ``ref`` gives the Frenet coordinates of points past the
+    path's end."""
     horizon = float(t_knots[-1])
     t = np.arange(0.0, horizon + 1e-9, dt)
     k = np.clip(np.searchsorted(t_knots, t, side="right") - 1, 0, jerk.shape[0] - 1)
@@ -114,15 +132,26 @@ def sample(
     # A profile that overruns the path (it could not stop in time) carries on straight along the
     # path's last heading, so that positions stay consistent with the speed and the checks see it.
     over = np.maximum(sig - path.length, 0.0)
-    heading = np.interp(sig, path.sigma, np.unwrap(path.heading))
+    unwrapped = np.unwrap(path.heading)
+    heading = np.interp(sig, path.sigma, unwrapped)
+    # Between knots the positions follow the path's heading (cubic Hermite in σ), not the chord: a
+    # point's heading then agrees with its direction of motion however short the step.
+    x, y = _along_heading(path, unwrapped, np.minimum(sig, path.length))
+    x, y = x + over * np.cos(heading), y + over * np.sin(heading)
+    s = np.interp(sig, path.sigma, path.s)
+    d = np.interp(sig, path.sigma, path.d)
+    past = over > 0
+    if np.any(past):  # where those points are on the reference (TransF-κ), not the path's end shifted
+        fr = to_frenet(ref, np.column_stack((x[past], y[past])))
+        s[past], d[past] = fr.s, fr.d
     return Trajectory(
         t=t,
-        x=np.interp(sig, path.sigma, path.x) + over * np.cos(heading),
-        y=np.interp(sig, path.sigma, path.y) + over * np.sin(heading),
+        x=x,
+        y=y,
         heading=heading,
-        curvature=np.where(over > 0, 0.0, np.interp(sig, path.sigma, path.curvature)),
+        curvature=np.where(past, 0.0, np.interp(sig, path.sigma, path.curvature)),
         v=vel,
         a=acc,
-        s=np.interp(sig, path.sigma, path.s) + over,
-        d=np.interp(sig, path.sigma, path.d),
+        s=s,
+        d=d,
     )

@@ -17,7 +17,7 @@ from shapely import LineString
 from shapely.geometry.base import BaseGeometry
 
 from planner.collision import box_corners, footprints, prediction_at
-from planner.frenet import to_frenet
+from planner.frenet import to_cartesian, to_frenet
 from planner.problem import DynamicObstacle, PlanningProblem
 from planner.reference import FloatArray, ReferenceLine, widths_at
 from planner.trajectory import Trajectory
@@ -60,6 +60,16 @@ _STEP_ABS_TOL, _STEP_REL_TOL = 0.05, 0.05
 _S_TOL = 1e-6
 #: steps shorter than this [m] are left out of the self-intersection check (a standstill)
 _STANDSTILL_STEP = 1e-3
+#: a point's (x, y) may be this far from the position of its reported (s, d) [m]
+_FRENET_TOL = 0.1
+#: the heading may be this far off the direction of a step [rad] (steps longer than
+#: :data:`_DIRECTION_STEP` [m]; a step's chord runs along the heading at its middle)
+_HEADING_TOL, _DIRECTION_STEP = 0.1, 0.01
+#: a step's heading change may differ from its length × the mean reported curvature by this [rad],
+#: plus this share of the change
+_TURN_ABS_TOL, _TURN_REL_TOL = 0.05, 0.1
+#: speed above ``max_speed`` tolerated, relative and absolute [m/s]
+_SPEED_REL_TOL, _SPEED_ABS_TOL = 1e-3, 0.05
 
 
 class ViolationKind(StrEnum):
@@ -87,6 +97,16 @@ class ViolationKind(StrEnum):
     HITS_OBSTACLE = "hits_obstacle"
     #: the footprint meets a moving obstacle at its predicted pose at the same time
     HITS_MOVING_OBSTACLE = "hits_moving_obstacle"
+    #: a point's (x, y) is not the position of its reported (s, d)
+    FRENET = "frenet"
+    #: the heading is off the direction of motion
+    HEADING = "heading"
+    #: the reported curvature disagrees with the heading's change along the trajectory
+    TURN = "turn"
+    #: faster than ``max_speed`` (beyond an ego already faster, braking from it)
+    SPEED = "speed"
+    #: the vehicle's front passes the reference line's end (beyond where it started)
+    ROAD_END = "road_end"
 
 
 #: the kinds that are collisions; the others break a limit without hitting anything by themselves
@@ -102,7 +122,7 @@ class Violation:
         obstacle_id: the obstacle hit (the two ``HITS_*`` kinds), else None.
         t: the first time it happens [s], None where a time means nothing (self-intersection).
         value: the worst value where the message states one (``CURVATURE`` [1/m],
-            ``LATERAL_ACCELERATION`` [m/s²]), else None.
+            ``LATERAL_ACCELERATION`` [m/s²], ``SPEED`` [m/s]), else None.
     """
 
     kind: ViolationKind
@@ -118,6 +138,8 @@ class Violation:
             return f"curvature {self.value:.3f} 1/m above max_curvature"
         if kind is ViolationKind.LATERAL_ACCELERATION:
             return f"lateral acceleration {self.value:.2f} m/s² above the limit"
+        if kind is ViolationKind.SPEED:
+            return f"speed {self.value:.2f} m/s above max_speed"
         if kind is ViolationKind.HITS_OBSTACLE:
             return f"footprint hits obstacle {self.obstacle_id}"
         if kind is ViolationKind.HITS_MOVING_OBSTACLE:
@@ -136,6 +158,10 @@ _MESSAGES = {
     ViolationKind.S_DECREASES: "s does not increase while moving",
     ViolationKind.SELF_INTERSECTS: "self-intersects",
     ViolationKind.LANE: "footprint leaves the lane",
+    ViolationKind.FRENET: "positions inconsistent with the reported (s, d)",
+    ViolationKind.HEADING: "heading off the direction of motion",
+    ViolationKind.TURN: "curvature inconsistent with the heading's change",
+    ViolationKind.ROAD_END: "the front passes the end of the reference line",
 }
 
 
@@ -157,7 +183,9 @@ def trajectory_violations(
     consistent with ``v·dt``; ``s`` never decreasing and strictly increasing while moving; no
     self-intersection; footprint inside the lane (all four corners by TransF-κ; no further out than the
     measured start where that is already partly outside) and clear of every static obstacle and of
-    every moving one at its predicted pose at the same time.
+    every moving one at its predicted pose at the same time. And the numbers agree with each other
+    (:func:`consistency_violations`), the speed keeps ``max_speed`` and the footprint stays before the
+    reference line's end (:func:`limit_violations`).
     """
     vehicle, ego, t = problem.vehicle, problem.ego, traj.t
     kind = ViolationKind
@@ -184,7 +212,8 @@ def trajectory_violations(
         out.append(Violation(kind.ACCELERATION, t=_first(t, outside_limits)))
     dt = np.diff(t)
     step = np.hypot(np.diff(traj.x), np.diff(traj.y))
-    expected = 0.5 * (traj.v[:-1] + traj.v[1:]) * dt
+    # the chord of an arc of length v·dt that turns by Δθ: v·dt·sin(Δθ/2)/(Δθ/2)
+    expected = 0.5 * (traj.v[:-1] + traj.v[1:]) * dt * np.sinc(0.5 * np.diff(traj.heading) / np.pi)
     inconsistent = np.abs(step - expected) > _STEP_ABS_TOL + _STEP_REL_TOL * expected
     if np.any(inconsistent):
         out.append(Violation(kind.STEP, t=_first(t, inconsistent)))
@@ -208,6 +237,13 @@ def trajectory_violations(
     off_lane = np.any(outside - allowance > _GEOMETRY_TOL, axis=1)
     if np.any(off_lane):
         out.append(Violation(kind.LANE, t=_first(t, off_lane)))
+    # past the reference's end the road is not known: the front (by the reported s) no further past it
+    # than at the start
+    beyond = traj.s + 0.5 * vehicle.length - ref.length
+    past_end = beyond > max(float(beyond[0]), 0.0) + _GEOMETRY_TOL
+    if np.any(past_end):
+        out.append(Violation(kind.ROAD_END, t=_first(t, past_end)))
+    out += consistency_violations(ref, traj) + speed_violations(problem, traj)
     for ob_id, shape in static:
         hits = shapely.intersects(prints, shape)
         if np.any(hits):
@@ -222,3 +258,43 @@ def trajectory_violations(
             if np.any(hits):
                 out.append(Violation(kind.HITS_MOVING_OBSTACLE, obstacle_id=ob.id, t=_first(t, hits)))
     return out
+
+
+def consistency_violations(ref: ReferenceLine, traj: Trajectory) -> list[Violation]:
+    """Whether the trajectory's numbers agree with each other: each point's ``(x, y)`` is the position of
+    its ``(s, d)`` (TransF-κ's inverse); over each step longer than :data:`_DIRECTION_STEP`, the
+    chord's direction is the heading at the step's middle and the heading's change is the step's
+    length times the mean reported curvature (both within their tolerances)."""
+    kind, t = ViolationKind, traj.t
+    out: list[Violation] = []
+    xy = to_cartesian(ref, traj.s, traj.d)
+    apart = np.hypot(xy[:, 0] - traj.x, xy[:, 1] - traj.y) > _FRENET_TOL
+    if np.any(apart):
+        out.append(Violation(kind.FRENET, t=_first(t, apart)))
+    dx, dy = np.diff(traj.x), np.diff(traj.y)
+    step = np.hypot(dx, dy)
+    moves = step > _DIRECTION_STEP
+    turn = np.diff(traj.heading)  # continuous, not wrapped
+    chord = traj.heading[:-1] + 0.5 * turn
+    off = np.abs(np.angle(np.exp(1j * (np.arctan2(dy, dx) - chord))))
+    skewed = moves & (off > _HEADING_TOL)
+    if np.any(skewed):
+        out.append(Violation(kind.HEADING, t=_first(t, skewed)))
+    expected = 0.5 * (traj.curvature[:-1] + traj.curvature[1:]) * step
+    bent = moves & (np.abs(turn - expected) > _TURN_ABS_TOL + _TURN_REL_TOL * np.abs(turn))
+    if np.any(bent):
+        out.append(Violation(kind.TURN, t=_first(t, bent)))
+    return out
+
+
+def speed_violations(problem: PlanningProblem, traj: Trajectory) -> list[Violation]:
+    """Faster than ``max_speed`` [m/s] where an ego that starts faster could have braked below the
+    speed: the allowance falls from the ego's speed at half ``max_deceleration`` (the jerk-limited
+    ramp to full braking takes a while)."""
+    vehicle = problem.vehicle
+    braking = problem.ego.speed - 0.5 * vehicle.max_deceleration * traj.t
+    allowed = np.maximum(vehicle.max_speed, braking) * (1 + _SPEED_REL_TOL) + _SPEED_ABS_TOL
+    fast = traj.v > allowed
+    if not np.any(fast):
+        return []
+    return [Violation(ViolationKind.SPEED, t=_first(traj.t, fast), value=float(traj.v.max()))]

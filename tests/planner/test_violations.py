@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from planner.frenet import to_cartesian
 from planner.problem import DynamicObstacle, Ego, Lane, Obstacle, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import ReferenceLine, build_reference
 from planner.roads import arc, straight
@@ -25,7 +26,8 @@ def _along(ref: ReferenceLine, speed: float = SPEED, steps: int = 50) -> Traject
     s = np.linspace(10.0, 10.0 + speed * steps * DT + 5.0, 200)
     path = frenet_path(ref, s, 0.0 * s, 0.0 * s, 0.0 * s)
     t = np.arange(steps + 1) * DT
-    return sample(path, t, speed * t, np.full(steps + 1, speed), np.zeros(steps + 1), np.zeros(steps), DT)
+    v, zeros = np.full(steps + 1, speed), np.zeros(steps + 1)
+    return sample(path, t, speed * t, v, zeros, zeros[:-1], DT, ref)
 
 
 def _problem(ref: ReferenceLine, traj: Trajectory, *obstacles: Obstacle, **vehicle: float) -> PlanningProblem:
@@ -44,27 +46,29 @@ def _set(values: np.ndarray, i: int, value: float) -> np.ndarray:
     return out
 
 
-def _loop(radius: float = 1.0) -> Trajectory:
-    """A circle from the ego at (10, 0) back through its start and on: it crosses itself. Reported
-    heading, curvature and s are those of driving straight on; the steps keep ``v·dt``."""
-    n = 60
-    theta = np.linspace(0.0, 2.0 * np.pi * 1.2, n + 1)
-    x, y = 10.0 + radius * np.sin(theta), radius - radius * np.cos(theta)
-    step = 2.0 * radius * np.sin(0.5 * (theta[1] - theta[0]))
-    t = np.arange(n + 1) * DT
-    v = np.full(n + 1, step / DT)
-    zero = np.zeros(n + 1)
-    return Trajectory(t=t, x=x, y=y, heading=zero, curvature=zero, v=v, a=zero, s=10.0 + v * t, d=y)
+def _from_frenet(ref: ReferenceLine, s: np.ndarray, d: np.ndarray) -> Trajectory:
+    """A trajectory through the points ``(s, d)`` taken at 0.1 s steps whose numbers agree with each
+    other: positions by TransF-κ's inverse, heading and curvature from the positions, speed from the
+    steps."""
+    xy = to_cartesian(ref, s, d)
+    sigma = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
+    heading = np.unwrap(np.arctan2(np.gradient(xy[:, 1], sigma), np.gradient(xy[:, 0], sigma)))
+    t = np.arange(s.size) * DT
+    v = np.gradient(sigma, t)
+    a, curvature = np.zeros(s.size), np.gradient(heading, sigma)
+    return Trajectory(t=t, x=xy[:, 0], y=xy[:, 1], heading=heading, curvature=curvature, v=v, a=a, s=s, d=d)
+
+
+#: a reference turning 1.3 times around a circle of radius 10 m: its second lap runs on its first
+LOOP = build_reference(arc(10.0, 2.6 * np.pi, step=0.5))
+#: a short straight road: a trajectory along it runs past its end
+SHORT = build_reference(straight(30.0, step=1.0))
 
 
 def _drift(to: float = 4.0) -> Trajectory:
-    """Straight on from the ego while drifting to ``y = to`` [m]: out of the lane, each step ``v·dt``."""
-    base = _along(STRAIGHT)
-    y = np.linspace(0.0, to, base.size)
-    dy = np.diff(y)
-    dx = np.sqrt((SPEED * DT) ** 2 - dy**2)
-    x = base.x[0] + np.concatenate(([0.0], np.cumsum(dx)))
-    return replace(base, x=x, y=y, s=x, d=y)
+    """Straight on from the ego while drifting to ``d = to`` [m]: out of the lane."""
+    s = CLEAN.s
+    return _from_frenet(STRAIGHT, s, np.linspace(0.0, to, s.size))
 
 
 def _crossing(t_in: float) -> DynamicObstacle:
@@ -86,14 +90,17 @@ CLEAN = _along(STRAIGHT)
 def _case(kind: ViolationKind) -> tuple[PlanningProblem, Trajectory]:
     """A problem and a trajectory that breaks exactly the check ``kind``."""
     if kind is ViolationKind.START:
-        shifted = replace(CLEAN, x=CLEAN.x + 1.0)
+        shifted = replace(CLEAN, x=CLEAN.x + 1.0, s=CLEAN.s + 1.0)  # along the x axis: s = x
         return _problem(STRAIGHT, CLEAN), shifted
     if kind is ViolationKind.KAPPA_D:
-        bend = _along(BEND)
-        return _problem(BEND, bend), replace(bend, d=_set(bend.d, 20, 31.0))  # past the centre of curvature
+        # 0.5 m past the centre of curvature of the radius-30 bend, in a lane that reaches there
+        s = np.linspace(10.0, 30.0, 40)
+        beyond = _from_frenet(BEND, s, np.full(s.size, 30.5))
+        problem = _problem(BEND, beyond, max_curvature=10.0, max_lateral_acceleration=1e4)
+        return replace(problem, lane=Lane(40.0, 3.5)), beyond
     if kind is ViolationKind.CURVATURE:
-        sharp = replace(CLEAN, curvature=_set(CLEAN.curvature, 20, 0.3))  # 0.3 × 25 = 7.5 m/s² allowed here
-        return _problem(STRAIGHT, CLEAN, max_lateral_acceleration=10.0), sharp
+        bend = _along(BEND)  # κ = 1/30 1/m
+        return _problem(BEND, bend, max_curvature=0.02, max_lateral_acceleration=10.0), bend
     if kind is ViolationKind.LATERAL_ACCELERATION:
         bend = _along(BEND)  # 25 / 30 ≈ 0.83 m/s²
         return _problem(BEND, bend, max_lateral_acceleration=0.5), bend
@@ -102,16 +109,30 @@ def _case(kind: ViolationKind) -> tuple[PlanningProblem, Trajectory]:
     if kind is ViolationKind.STEP:
         return _problem(STRAIGHT, CLEAN), replace(CLEAN, v=_set(CLEAN.v, 20, SPEED + 2.0))
     if kind is ViolationKind.S_DECREASES:
-        return _problem(STRAIGHT, CLEAN), replace(CLEAN, s=_set(CLEAN.s, 20, CLEAN.s[19]))
+        slow = _along(STRAIGHT, speed=0.6)  # steps of 6 cm: the repeated s is within its position's tolerance
+        return _problem(STRAIGHT, slow), replace(slow, s=_set(slow.s, 20, slow.s[19]))
     if kind is ViolationKind.SELF_INTERSECTS:
-        loop = _loop()
-        return _problem(STRAIGHT, loop), loop
+        around = _along(LOOP, steps=130)  # 65 m along a circle of 63 m
+        return _problem(LOOP, around), around
     if kind is ViolationKind.LANE:
         return _problem(STRAIGHT, CLEAN), _drift()
     if kind is ViolationKind.HITS_OBSTACLE:
         parked = PolygonObstacle("parked", _box(30.0, 34.0, 0.5, 2.0))
         return _problem(STRAIGHT, CLEAN, parked), CLEAN
-    return _problem(STRAIGHT, CLEAN, _crossing(3.0)), CLEAN
+    if kind is ViolationKind.HITS_MOVING_OBSTACLE:
+        return _problem(STRAIGHT, CLEAN, _crossing(3.0)), CLEAN
+    if kind is ViolationKind.FRENET:
+        return _problem(STRAIGHT, CLEAN), replace(CLEAN, d=_set(CLEAN.d, 20, 0.5))  # the position stays
+    if kind is ViolationKind.HEADING:
+        return _problem(STRAIGHT, CLEAN), replace(CLEAN, heading=CLEAN.heading + 0.3)  # crabbing
+    if kind is ViolationKind.TURN:
+        # curvature 0.15 1/m reported while the heading does not change (within the vehicle's limits)
+        turning = replace(CLEAN, curvature=np.full(CLEAN.size, 0.15))
+        return _problem(STRAIGHT, CLEAN, max_lateral_acceleration=10.0), turning
+    if kind is ViolationKind.SPEED:
+        return _problem(STRAIGHT, CLEAN, max_speed=4.0), CLEAN  # 5 m/s, not braking
+    past = _along(SHORT)  # from s = 10 m to 35 m on a 30 m road
+    return _problem(SHORT, past), past
 
 
 def test_the_clean_trajectories_pass_every_check() -> None:
@@ -129,7 +150,7 @@ def test_each_check_gives_its_own_kind(kind: ViolationKind) -> None:
 MESSAGES = {
     ViolationKind.START: "does not start at the ego",
     ViolationKind.KAPPA_D: "1 − κ·d ≤ 0 at some point",
-    ViolationKind.CURVATURE: "curvature 0.300 1/m above max_curvature",
+    ViolationKind.CURVATURE: "curvature 0.033 1/m above max_curvature",
     ViolationKind.LATERAL_ACCELERATION: "lateral acceleration 0.83 m/s² above the limit",
     ViolationKind.ACCELERATION: "acceleration outside the limits",
     ViolationKind.STEP: "positions inconsistent with v·dt",
@@ -138,6 +159,11 @@ MESSAGES = {
     ViolationKind.LANE: "footprint leaves the lane",
     ViolationKind.HITS_OBSTACLE: "footprint hits obstacle parked",
     ViolationKind.HITS_MOVING_OBSTACLE: "footprint hits moving obstacle crossing",
+    ViolationKind.FRENET: "positions inconsistent with the reported (s, d)",
+    ViolationKind.HEADING: "heading off the direction of motion",
+    ViolationKind.TURN: "curvature inconsistent with the heading's change",
+    ViolationKind.SPEED: "speed 5.00 m/s above max_speed",
+    ViolationKind.ROAD_END: "the front passes the end of the reference line",
 }
 
 

@@ -12,9 +12,10 @@ What is checked is properties, not numbers:
 * ``ok`` and ``stopped``: :func:`planner.validation.trajectory_violations` (inside the lane, clear of
   obstacles at every time, ``1 − κ·d > 0``, curvature and lateral-acceleration limits, acceleration
   limits, steps consistent with ``v·dt``, ``s`` increasing while moving, no self-intersection), plus
-  circles checked exactly, the speed limit, the heading along the direction of motion and the reported
-  ``s, d`` agreeing with TransF-κ of the positions;
-* ``fallback``: a reason, a braking profile (speed never increasing, deceleration within the limit)
+  circles checked exactly, the speed limit, the heading along the direction of motion, the reported
+  curvature agreeing with the heading's change and the reported ``s, d`` with TransF-κ of the positions;
+* ``fallback``: a reason, a braking profile (speed never increasing once a positive acceleration at the
+  start is released, deceleration within the limit)
   and steps consistent with ``v·dt``.
 
 Units: metres, seconds, radians.
@@ -53,10 +54,15 @@ TIME_TOL = 1e-6
 MOVING = 0.05
 #: relative tolerance on the vehicle limits
 REL_TOL = 1e-3
+#: speed above max_speed tolerated [m/s] (the speed profile's limit is soft: an acceleration at the
+#: start overshoots by a²/(2·jerk) before the jerk limit brings it to 0)
+SPEED_TOL = 0.05
 #: heading vs the direction of motion [rad], for steps longer than MIN_DIRECTION_STEP [m]
 HEADING_TOL, MIN_DIRECTION_STEP = math.radians(3.0), 0.01
 #: reported s, d vs TransF-κ of the positions [m]
 FRENET_TOL = 0.05
+#: a step's heading change vs its length × the mean reported curvature [rad], absolute + relative
+TURN_ABS_TOL, TURN_REL_TOL = 0.05, 0.1
 #: distance between consecutive points vs the mean speed × dt, absolute [m] + relative
 STEP_ABS_TOL, STEP_REL_TOL = 0.05, 0.05
 
@@ -122,12 +128,14 @@ def common_problems(request: PlanningRequest, problem: PlanningProblem, traj: Tr
     if np.any(traj.v < 0.0):
         out.append(f"negative speed at {_at(traj, int(np.argmin(traj.v)))}")
     step = np.hypot(np.diff(traj.x), np.diff(traj.y))
-    expected = 0.5 * (traj.v[:-1] + traj.v[1:]) * dt
+    # the chord of an arc of length v·dt turning by Δθ is v·dt · sin(Δθ/2)/(Δθ/2)
+    half_turn = 0.5 * np.diff(traj.heading)
+    expected = 0.5 * (traj.v[:-1] + traj.v[1:]) * dt * np.sinc(half_turn / np.pi)
     err = np.abs(step - expected) - (STEP_ABS_TOL + STEP_REL_TOL * expected)
     if np.any(err > 0):
         i = int(np.argmax(err))
         out.append(
-            f"step {i}→{i + 1} moves {step[i]:.3f} m but the mean speed × dt is {expected[i]:.3f} m "
+            f"step {i}→{i + 1} moves {step[i]:.3f} m but the mean speed × dt makes {expected[i]:.3f} m "
             f"at {_at(traj, i)}"
         )
     return out
@@ -154,7 +162,7 @@ def full_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
                 depth = ob.radius - dist[i]
                 out.append(f"footprint hits obstacle {ob.id} by {depth:.3f} m at {_at(traj, i)}")
 
-    vmax = max(veh.max_speed, ego.speed) * (1 + REL_TOL)
+    vmax = max(veh.max_speed, ego.speed) * (1 + REL_TOL) + SPEED_TOL
     if np.any(traj.v > vmax):
         out.append(f"speed {traj.v.max():.2f} m/s above max_speed {veh.max_speed} m/s")
 
@@ -166,6 +174,17 @@ def full_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
     if np.any(off > HEADING_TOL):
         i = int(np.argmax(off))
         out.append(f"heading {math.degrees(off[i]):.1f}° off the direction of motion at {_at(traj, i)}")
+    # the reported curvature is the heading's rate of change along the path
+    length = np.hypot(dx, dy)
+    turned = length * 0.5 * (traj.curvature[:-1] + traj.curvature[1:])
+    excess = np.abs(dh - turned) - TURN_ABS_TOL - TURN_REL_TOL * np.abs(dh)
+    excess = np.where(length > MIN_DIRECTION_STEP, excess, 0.0)
+    if np.any(excess > 0):
+        i = int(np.argmax(excess))
+        out.append(
+            f"the heading turns {dh[i]:.3f} rad over {length[i]:.2f} m but the reported curvature makes "
+            f"{turned[i]:.3f} rad at {_at(traj, i)}"
+        )
 
     fr = to_frenet(ref, np.column_stack((traj.x, traj.y)))
     for name, mine, theirs in (("s", fr.s, traj.s), ("d", fr.d, traj.d)):
@@ -179,14 +198,18 @@ def full_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
 
 
 def fallback_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
-    """A fallback brakes: speed never increases, deceleration within the limit."""
+    """A fallback brakes: speed never increases once a positive acceleration at the start is released,
+    deceleration within the limit, slower at the end than at its peak."""
     out: list[str] = []
-    veh, ego = problem.vehicle, problem.ego
-    if np.any(np.diff(traj.v) > 1e-6):
-        out.append(f"the fallback speeds up at {_at(traj, int(np.argmax(np.diff(traj.v))))}")
+    veh = problem.vehicle
+    # it may speed up only while it releases a positive acceleration at the start (the jerk limit)
+    releasing = np.logical_and.accumulate((traj.a[:-1] > 0) & (np.diff(traj.a) < 0))
+    faster = (np.diff(traj.v) > 1e-6) & ~releasing
+    if np.any(faster):
+        out.append(f"the fallback speeds up at {_at(traj, int(np.argmax(faster)))}")
     if np.any(traj.a < -veh.max_deceleration - 1e-3):
         out.append(f"the fallback brakes harder than max_deceleration: {traj.a.min():.2f} m/s²")
-    if ego.speed > 0.0 and not traj.v[-1] < ego.speed:
+    if traj.v.max() > MOVING and not traj.v[-1] < traj.v.max():  # from its peak (the start, or the release)
         out.append("the fallback does not slow down")
     return out
 

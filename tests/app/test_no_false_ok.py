@@ -1,0 +1,104 @@
+"""No false ``ok``: whatever vehicle and ego a request describes (within the API's limits), an ``ok`` or
+``stopped`` answer passes every check of the independent checker in ``tests/regression/checks.py``
+(positions against the reported ``(s, d)``, heading against the direction of motion, curvature against
+the heading's change, the vehicle's limits, the lane, the obstacles), and a ``fallback`` brakes.
+
+The checker is written from the answer's JSON, not with the planner's own checks; the requests come
+through the HTTP layer like a client's.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Any
+
+import numpy as np
+from fastapi.testclient import TestClient
+from hypothesis import HealthCheck, given, note, settings
+from hypothesis import strategies as st
+
+from app.limits import (
+    MAX_VEHICLE_ACCELERATION,
+    MAX_VEHICLE_CURVATURE,
+    MAX_VEHICLE_SPEED,
+    MIN_VEHICLE_ACCELERATION,
+    MIN_VEHICLE_CURVATURE,
+)
+from planner.roads import straight, u_turn
+from tests.regression.checks import STATUSES, error_problems, plan_problems
+
+
+def _log_uniform(low: float, high: float) -> st.SearchStrategy[float]:
+    return st.floats(math.log(low), math.log(high)).map(math.exp)
+
+
+def _road(points: np.ndarray, index: int, width: float) -> dict[str, Any]:
+    """A request on ``points`` with the ego at point ``index``, heading along the road."""
+    here, ahead = points[index], points[index + 1]
+    heading = float(np.arctan2(ahead[1] - here[1], ahead[0] - here[0]))
+    return {
+        "reference_line": points.tolist(),
+        "lane": {"left_width": width, "right_width": width},
+        "obstacles": [],
+        "ego": {"x": float(here[0]), "y": float(here[1]), "heading": heading},
+    }
+
+
+ROADS = {
+    "straight": _road(straight(150.0, step=1.0), 5, 1.75),
+    "u_turn_8m": _road(u_turn(radius=8.0, leg=30.0, step=0.5), 10, 2.0),
+    "hairpin_4m": _road(u_turn(radius=4.0, leg=25.0, step=0.5), 10, 3.0),
+}
+
+vehicles = st.fixed_dictionaries(
+    {
+        "max_speed": _log_uniform(0.5, MAX_VEHICLE_SPEED),
+        "max_acceleration": _log_uniform(MIN_VEHICLE_ACCELERATION, MAX_VEHICLE_ACCELERATION),
+        "max_deceleration": _log_uniform(MIN_VEHICLE_ACCELERATION, MAX_VEHICLE_ACCELERATION),
+        "max_lateral_acceleration": _log_uniform(MIN_VEHICLE_ACCELERATION, MAX_VEHICLE_ACCELERATION),
+        "max_curvature": _log_uniform(MIN_VEHICLE_CURVATURE, min(MAX_VEHICLE_CURVATURE, 2.0)),
+    }
+)
+egos = st.fixed_dictionaries(
+    {
+        "speed": st.one_of(st.just(0.0), _log_uniform(0.1, MAX_VEHICLE_SPEED)),
+        "acceleration": st.floats(-20.0, 20.0),
+    }
+)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    road=st.sampled_from(sorted(ROADS)), vehicle=vehicles, ego=egos, target=st.none() | st.floats(0.0, 60.0)
+)
+def test_every_answer_to_an_extreme_vehicle_passes_the_independent_checks(
+    client: TestClient, road: str, vehicle: dict[str, float], ego: dict[str, float], target: float | None
+) -> None:
+    request = copy.deepcopy(ROADS[road])
+    request["vehicle"] = vehicle
+    request["ego"].update(ego)
+    request["options"] = {"time_budget_ms": 60_000.0, **({} if target is None else {"target_speed": target})}
+    note(f"request options/vehicle/ego: {request['options']} {vehicle} {request['ego']}")
+    answer = client.post("/v1/plan", json=request)
+    if answer.status_code == 422:  # the request contradicts itself: refused, naming the field
+        assert error_problems(answer.json()) == []
+        return
+    assert answer.status_code == 200, answer.text
+    assert plan_problems(request, answer.json(), STATUSES) == []
+
+
+def test_the_two_false_oks_of_the_issue_are_fallbacks(client: TestClient, demo: dict[str, Any]) -> None:
+    """The demo at 20 m/s with a brake of 0.01 m/s² (it cannot stop before the road's end, nor take the
+    U-turn), and an 8 m U-turn entered at 200 m/s: both impossible, both braking fallbacks."""
+    demo["ego"]["speed"] = 20.0
+    demo["vehicle"]["max_deceleration"] = 0.01
+    fast = copy.deepcopy(ROADS["u_turn_8m"])
+    fast["ego"]["speed"] = 200.0
+    fast["vehicle"] = {"max_speed": 200.0}
+    answer = client.post("/v1/plan", json=demo).json()
+    assert answer["status"] == "fallback", answer["message"]
+    assert plan_problems(demo, answer, ["fallback"]) == []
+    answer = client.post("/v1/plan", json=fast).json()
+    assert answer["status"] == "fallback", answer["message"]
+    assert "lateral acceleration" in answer["message"]  # what makes it impossible
