@@ -7,7 +7,8 @@ golden regression request, every CommonRoad request under ``tests/data/commonroa
     python bench/compare_answers.py record /tmp/before.json
     python bench/compare_answers.py compare /tmp/before.json
 
-Plans run in one plan process, in a fixed order (the solvers warm-start from the plan before).
+Plans run in one plan process, in a fixed order, with the largest time budget (so that a loaded machine
+changes no answer).
 ``compare`` prints, per request, whether status and message are the same and the largest absolute
 difference of any number of the trajectory and candidates, and the largest of all; the exit status is 1
 when a status, a message, a shape or a number differs by more than ``--tolerance`` (default 1e-9).
@@ -52,7 +53,8 @@ def record() -> dict[str, Any]:
     out: dict[str, Any] = {}
     # One plan process, as served but in a fixed order: the solvers warm-start from the plan before,
     # which moves answers by up to ~1e-8 when two processes share the requests differently.
-    settings = Settings(log_level="warning", plan_processes=1)
+    # The largest budget: on a loaded machine a plan past the default budget would be a fallback.
+    settings = Settings(log_level="warning", plan_processes=1, time_budget_ms=60_000.0)
     with TestClient(create_app(settings)) as client:
         demo = client.get("/v1/demo").json()
         named = [("demo", demo), *requests()]

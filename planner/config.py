@@ -110,6 +110,9 @@ class PlannerConfig:
     #: an obstacle farther from the reference than the widest lane side and the vehicle's length by
     #: more than this cannot matter [m]
     corridor_spare: float = 1.0
+    #: share of ``options.time_budget_ms`` kept for the fallback when the stages overrun (they stop at
+    #: the rest) [-]
+    budget_reserve: float = 0.1
     selection: SelectionConfig = field(default_factory=SelectionConfig)
     lateral: LateralConfig = field(default_factory=LateralConfig)
     speed: SpeedConfig = field(default_factory=SpeedConfig)

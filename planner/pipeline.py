@@ -41,7 +41,7 @@ __all__ = ["plan"]
 
 def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> PlanResult:
     """Plan a trajectory for ``problem``; never raises for a planning failure (only for invalid input)."""
-    timer = StageTimer(problem.options.time_budget_ms)
+    timer = StageTimer(problem.options.time_budget_ms, config.budget_reserve)
     solvers = thread_solvers(config)
     options, vehicle = problem.options, problem.vehicle
     with timer.stage("reference"):
@@ -82,6 +82,8 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
 
     with timer.stage("trajectory"):
         profile, traj, bad, note = _trajectory(ref, problem, path, speed, static)
+    if reason := timer.overrun("trajectory"):
+        return run.fallback(reason, path, candidate, lateral.info, sqp.info)
     if bad:
         # A follower's bound may have given way to a stop or a leader: the fallback then also weighs
         # keeping speed and this profile against braking into the follower.

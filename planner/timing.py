@@ -22,11 +22,18 @@ TOTAL: Final = "total"
 
 
 class StageTimer:
-    """Wall time per stage [ms] and of the whole plan since the timer was made, against a budget [ms]."""
+    """Wall time per stage [ms] and of the whole plan since the timer was made, against a budget [ms].
 
-    def __init__(self, budget_ms: float | None = None) -> None:
+    The stages have the budget less a reserve (``reserve_share`` of it) for the fallback an overrun
+    leads to, so that the answer is ready within the budget as long as the fallback's work fits in the
+    reserve. The budget is wall time: the same request can overrun on a loaded machine and not on an
+    idle one (the lateral QP's time limit is the budget left, too).
+    """
+
+    def __init__(self, budget_ms: float | None = None, reserve_share: float = 0.0) -> None:
         self._t0 = time.perf_counter()
         self._budget_ms = budget_ms
+        self._deadline_ms = None if budget_ms is None else budget_ms * (1.0 - reserve_share)
         self._ms: dict[Stage, float] = {}
 
     def elapsed_ms(self) -> float:
@@ -34,17 +41,21 @@ class StageTimer:
         return 1e3 * (time.perf_counter() - self._t0)
 
     def remaining_s(self) -> float | None:
-        """Budget left [s] (at least 1 ms), or None without a budget."""
-        if self._budget_ms is None:
+        """Time left for the stages [s] (at least 1 ms), or None without a budget."""
+        if self._deadline_ms is None:
             return None
-        return max(1e-3 * self._budget_ms - (time.perf_counter() - self._t0), 1e-3)
+        return max(1e-3 * self._deadline_ms - (time.perf_counter() - self._t0), 1e-3)
 
     def overrun(self, stage: Stage) -> str | None:
-        """Why the plan must stop after ``stage``, if the budget is spent; else None."""
+        """Why the plan must stop after ``stage``, if the stages' share of the budget is spent; else None."""
         elapsed = self.elapsed_ms()
-        if self._budget_ms is None or elapsed <= self._budget_ms:
+        if self._deadline_ms is None or elapsed <= self._deadline_ms:
             return None
-        return f"time budget of {self._budget_ms:g} ms spent after the {stage} stage ({elapsed:.0f} ms)"
+        reserve = "" if self._deadline_ms == self._budget_ms else ", the rest kept for the fallback"
+        return (
+            f"time budget of {self._budget_ms:g} ms spent after the {stage} stage "
+            f"({elapsed:.0f} ms{reserve})"
+        )
 
     @contextmanager
     def stage(self, name: Stage) -> Iterator[None]:

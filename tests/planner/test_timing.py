@@ -92,3 +92,36 @@ def test_a_fallback_after_the_checks_times_every_stage() -> None:
     assert status == "fallback"
     assert list(timing) == [*STAGES, TOTAL]
     assert wall - CALL_OVERHEAD_MS <= timing[TOTAL] <= wall
+
+
+def test_the_stages_stop_short_of_the_budget_by_the_fallbacks_reserve() -> None:
+    timer = StageTimer(budget_ms=40.0, reserve_share=0.5)  # the stages have 20 ms
+    time.sleep(0.025)
+    reason = timer.overrun("speed")
+    assert reason is not None and "the rest kept for the fallback" in reason
+    assert timer.remaining_s() == pytest.approx(1e-3)
+    assert StageTimer(budget_ms=40.0, reserve_share=0.5).overrun("speed") is None
+
+
+def test_a_plan_that_overruns_in_its_last_stage_is_a_braking_fallback(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The trajectory stage runs after the speed stage's check: an overrun there is caught too (the
+    answer is a braking fallback, not an ``ok`` past the budget)."""
+    import planner.pipeline as pipeline
+
+    budget_ms = 400.0
+    slow = pipeline._trajectory
+
+    def slow_trajectory(*args: object, **kwargs: object) -> object:
+        time.sleep(0.4)
+        return slow(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(pipeline, "_trajectory", slow_trajectory)
+    base = demo_problem()
+    problem = replace(base, options=replace(base.options, time_budget_ms=budget_ms))
+    result = plan(problem)
+    assert result.status == "fallback"
+    assert "spent after the trajectory stage" in result.message
+    assert "fallback" in result.diagnostics.timing_ms
+    assert np.all(np.diff(result.trajectory.v) <= 1e-9)  # it brakes
