@@ -485,9 +485,16 @@ function setPlots({ traj, tOffset = 0, history = null, candidates = [], request,
   const ts = traj ? traj.t.map((t) => t + tOffset) : [];
   const t0 = tRange ? tRange[0] : ts[0] ?? 0;
   const t1 = tRange ? tRange[1] : ts[ts.length - 1] ?? 1;
-  const sAll = [...(traj ? traj.s : []), ...(history ? history.s : [])].filter(Number.isFinite);
-  const s0 = sAll.length ? Math.min(...sAll) : 0;
-  const s1 = sAll.length ? Math.max(...sAll) : 1;
+  let s0 = Infinity;
+  let s1 = -Infinity;
+  for (const list of [traj ? traj.s : [], history ? history.s : [], ...candidates.map((c) => c.s)]) {
+    for (const s of list) {
+      if (!Number.isFinite(s)) continue;
+      s0 = Math.min(s0, s);
+      s1 = Math.max(s1, s);
+    }
+  }
+  if (!(s1 >= s0)) [s0, s1] = [0, 1];
   const rs = roadSeries(state.road, s0, s1);
   const target = request && request.options ? request.options.target_speed : null;
   plots.v.setData([
