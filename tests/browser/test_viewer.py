@@ -19,11 +19,12 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
+import shapely
 
 from planner.candidates import ego_frenet, generate_candidates
 from planner.collision import prediction_at
 from planner.problem import DynamicObstacle
-from planner.reference import build_reference
+from planner.reference import build_reference, widths_at
 from planner_tools.cli import main as cli_main
 from planner_tools.io import problem_from_json
 from planner_tools.runfile import SCALE, decode, read_run
@@ -223,6 +224,34 @@ def test_new_diagnostics_fields_and_a_road_show_without_changes(
     ]
     starts = sorted(float(e[0, 1]) for e in edges)
     assert starts[0] == pytest.approx(-7.0, abs=1e-6) and starts[-1] == pytest.approx(14.0, abs=1e-6)
+
+
+def test_the_road_drawn_is_the_planners(page: Any, base_url: str) -> None:
+    """A coarse polyline: the page draws the planner's spline through it, not the polyline, and the
+    lane edges at the widths given per point, interpolated along s as the planner does."""
+    points = [[0.0, 0.0], [20.0, 0.0], [35.0, 8.0], [45.0, 22.0], [50.0, 40.0]]
+    left = [3.0, 3.5, 4.0, 3.0, 2.5]
+    request = {
+        "reference_line": points,
+        "lane": {"left_width": left, "right_width": 2.0},
+        "ego": {"x": 2.0, "y": 0.0, "heading": 0.0, "speed": 3.0},
+    }
+    page.goto(f"{base_url}/viewer")
+    open_editor_and_plan(page, json.dumps(request))
+    ref = build_reference(points)
+    drawn = shapely.LineString(svg_points(page.get_attribute("#map .reference", "d")))
+    assert float(shapely.distance(shapely.points(ref.points), drawn).max()) < 0.01
+    assert drawn.length == pytest.approx(ref.length, rel=1e-3)
+    edges = shapely.MultiLineString(
+        [
+            svg_points(d)
+            for d in page.eval_on_selector_all("#map .lane-edge", "e => e.map(x => x.getAttribute('d'))")
+        ]
+    )
+    normal = np.column_stack((-np.sin(ref.heading), np.cos(ref.heading)))
+    width = widths_at(np.array(left), ref, ref.s, field_name="left")
+    for offset in (ref.points + width[:, None] * normal, ref.points - 2.0 * normal):
+        assert float(shapely.distance(shapely.points(offset), edges).max()) < 0.02
 
 
 # --------------------------------------------------------------------------------------------------
