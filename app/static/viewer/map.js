@@ -36,6 +36,7 @@ export class MapView {
     for (const name of LAYERS) this.layers[name] = el("g", { "data-layer": name }, this.world);
     this.view = { x: -50, y: -50, w: 100, h: 100 }; // viewBox in (x, −y)
     this.home = null;
+    this.extent = null; // everything drawn (the "all" button)
     this.onZoom = () => {};
     this.installHandlers();
     new ResizeObserver(() => this.apply()).observe(svg);

@@ -357,6 +357,16 @@ function drawObstacles(obstacles) {
   return points;
 }
 
+/** The box grown to at least `half` metres either side of its centre (null stays null). */
+function atLeast(box, half) {
+  if (!box) return null;
+  const cx = (box.minX + box.maxX) / 2;
+  const cy = (box.minY + box.maxY) / 2;
+  const hx = Math.max((box.maxX - box.minX) / 2, half);
+  const hy = Math.max((box.maxY - box.minY) / 2, half);
+  return { minX: cx - hx, maxX: cx + hx, minY: cy - hy, maxY: cy + hy };
+}
+
 function placeLabel(label, x, y) {
   label.setAttribute("x", x);
   label.setAttribute("y", -y);
@@ -607,7 +617,8 @@ async function showPlan(request, token, signal) {
   state.road = guarded("the road", () => drawRoad(request));
   if (state.road) points.push(...state.road.outline);
   points.push(...(guarded("the obstacles", () => drawObstacles(request.obstacles)) || []));
-  map.fit(bounds(points));
+  map.extent = bounds(points);
+  map.fit(map.extent);
   setBadge("planning…", "busy");
   const asked = withOptions(request, { return_candidates: true });
   let answer;
@@ -646,8 +657,9 @@ function drawAnswer(request, answer) {
   }));
   drawCandidates(cands);
   const pts = state.trajectory ? drawTrajectory(traj, vehicle) : [];
-  const box = bounds(pts, ...(state.road ? [state.road.outline] : []), ...cands.map((c) => c.points));
-  map.fit(box);
+  // home: the plan and its candidates (a long road would make them specks); "all": the road too
+  map.extent = bounds(pts, ...(state.road ? [state.road.outline] : []), ...cands.map((c) => c.points));
+  map.fit(atLeast(bounds(pts, ...cands.map((c) => c.points)), 20) || map.extent);
   setPlots({ traj: state.trajectory, candidates: cands, request });
   const status = String(answer.status);
   body.dataset.planStatus = status;
@@ -737,7 +749,8 @@ async function showConversion(kind, request, token, signal) {
   $("plots").hidden = true;
   state.road = guarded("the reference line", () => drawRoad({ reference_line: request.reference_line }, { lane: false }));
   const outline = state.road ? state.road.outline : [];
-  map.fit(bounds(outline));
+  map.extent = bounds(outline);
+  map.fit(map.extent);
   setBadge("converting…", "busy");
   const path = kind === "frenet" ? "v1/frenet" : "v1/cartesian";
   let xy;
@@ -761,7 +774,8 @@ async function showConversion(kind, request, token, signal) {
       label.textContent = `s ${sd[i][0].toFixed(2)}, d ${sd[i][1].toFixed(2)}`;
     });
     $("map").dataset.points = String(xy.length);
-    map.fit(bounds(outline, xy, feet));
+    map.extent = bounds(outline, xy, feet);
+    map.fit(map.extent);
     body.dataset.planStatus = "ok";
     setBadge("converted", "ok");
     setSummary(`POST /${path}`, `${xy.length} point${xy.length === 1 ? "" : "s"} converted`, [
@@ -842,7 +856,9 @@ function showRun(doc) {
     if (c.traj) vs.push(...c.traj.v);
   });
   state.vScale = [0, Math.max(1, ...vs.filter(Number.isFinite))];
-  map.fit(bounds(points));
+  map.extent = bounds(points);
+  const planned = run.cycles.map((_, k) => cycleData(run, k).traj).filter(Boolean);
+  map.fit(atLeast(bounds(run.driven.xy, ...planned.map((tr) => tr.x.map((x, i) => [x, tr.y[i]]))), 20) || map.extent);
   body.dataset.runCycles = String(run.cycles.length);
   run.lastCycle = -1;
   state.legend = { candidates: true, driven: true, chosen: true };
@@ -1111,6 +1127,7 @@ function wire() {
   $("zoom-in").addEventListener("click", () => map.zoom(1.5));
   $("zoom-out").addEventListener("click", () => map.zoom(1 / 1.5));
   $("zoom-fit").addEventListener("click", () => map.fitHome());
+  $("zoom-all").addEventListener("click", () => map.fit(map.extent, false));
   for (const box of document.querySelectorAll("#layers input[data-layer]")) {
     const layer = box.dataset.layer;
     const apply = () => map.setVisible(layer, box.checked);
@@ -1132,6 +1149,7 @@ function wire() {
     else if (e.key === "+" || e.key === "=") map.zoom(1.5);
     else if (e.key === "-") map.zoom(1 / 1.5);
     else if (e.key === "0") map.fitHome();
+    else if (e.key === "a") map.fit(map.extent, false);
   });
   // drop a file anywhere
   let depth = 0;
