@@ -79,18 +79,7 @@ export class MapView {
     if (remember) this.home = box;
     const pad = Math.max(box.maxX - box.minX, box.maxY - box.minY) * 0.06 + 2;
     this.view = { x: box.minX - pad, y: -box.maxY - pad, w: box.maxX - box.minX + 2 * pad, h: box.maxY - box.minY + 2 * pad };
-    // the aspect ratio is applied by apply(), which widens the narrower side around the centre
-    const r = this.svg.getBoundingClientRect();
-    if (r.width && r.height) {
-      const k = Math.min(r.width / this.view.w, r.height / this.view.h);
-      const cx = this.view.x + this.view.w / 2;
-      const cy = this.view.y + this.view.h / 2;
-      this.view.w = r.width / k;
-      this.view.h = r.height / k;
-      this.view.x = cx - this.view.w / 2;
-      this.view.y = cy - this.view.h / 2;
-    }
-    this.apply();
+    this.apply(); // widens the narrower side to the element's aspect ratio, around the centre
   }
 
   fitHome() {

@@ -1059,6 +1059,7 @@ async function loadExamples() {
     spec = await getJson("openapi.json");
   } catch {
     select.title = "The service does not serve its OpenAPI document; only the demo is offered.";
+    body.dataset.examples = "0";
     return;
   }
   const schemas = (spec.components && spec.components.schemas) || {};
@@ -1085,6 +1086,7 @@ async function loadExamples() {
     select.appendChild(option);
   });
   select.dataset.count = String(examples.length);
+  body.dataset.examples = String(examples.length);
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -1117,6 +1119,10 @@ function wire() {
     }
   });
   $("api-key").addEventListener("input", (e) => setApiKey(e.target.value));
+  // docs behind the key: try the examples again once a key is given
+  $("api-key").addEventListener("change", () => {
+    if (!state.examples) loadExamples();
+  });
   $("time").addEventListener("input", (e) => {
     setPlaying(false);
     setTime(Number(e.target.value));
@@ -1178,7 +1184,7 @@ function wire() {
 
 function start() {
   wire();
-  const examples = loadExamples();
+  loadExamples();
   const params = new URLSearchParams(window.location.search);
   if (params.get("run")) loadUrl(params.get("run"), "the run");
   else if (params.get("request")) loadUrl(params.get("request"), "the request");
@@ -1187,9 +1193,6 @@ function start() {
     setSummary("Nothing loaded yet", "Plan the demo, pick an example, open or drop a request or a run file, or paste JSON.", []);
     for (const p of Object.values(plots)) p.setData([]);
   }
-  examples.finally(() => {
-    body.dataset.examples = String((state.examples || []).length);
-  });
 }
 
 start();
