@@ -487,14 +487,16 @@ function roadSeries(road, s0, s1) {
 }
 
 function limitSeries(x0, x1, values) {
+  if (!(x1 > x0)) return [];
   return values.filter((v) => Number.isFinite(v)).map((v) => ({ x: [x0, x1], y: [v, v], cls: "limit" }));
 }
 
 function setPlots({ traj, tOffset = 0, history = null, candidates = [], request, tRange = null }) {
   const vehicle = vehicleOf(request);
   const ts = traj ? traj.t.map((t) => t + tOffset) : [];
+  // without a trajectory the limits alone would draw empty charts: "no data" instead
   const t0 = tRange ? tRange[0] : ts[0] ?? 0;
-  const t1 = tRange ? tRange[1] : ts[ts.length - 1] ?? 1;
+  const t1 = tRange ? tRange[1] : ts[ts.length - 1] ?? 0;
   let s0 = Infinity;
   let s1 = -Infinity;
   for (const list of [traj ? traj.s : [], history ? history.s : [], ...candidates.map((c) => c.s)]) {
@@ -504,7 +506,8 @@ function setPlots({ traj, tOffset = 0, history = null, candidates = [], request,
       s1 = Math.max(s1, s);
     }
   }
-  if (!(s1 >= s0)) [s0, s1] = [0, 1];
+  // nothing planned: the road's κ(s) and widths along the whole reference
+  if (!(s1 >= s0)) [s0, s1] = [0, state.road ? state.road.curve.length : 0];
   const rs = roadSeries(state.road, s0, s1);
   const target = request && request.options ? request.options.target_speed : null;
   plots.v.setData([
