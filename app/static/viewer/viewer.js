@@ -9,11 +9,13 @@
 
 import { ApiError, getJson, parseDocument, parseJson, post, setApiKey } from "./api.js";
 import {
-  bandQuads, bounds, boxCorners, curveAt, decodePoints, decodeSeries, foldsBack, interp, obstacleKind,
-  offsetCurve, predictionAt, referenceCurve, trajectoryAt, unwrap, widthsAlong,
+  bandQuads, bounds, boxCorners, curveAt, foldsBack, interp, obstacleKind, offsetCurve, predictionAt,
+  referenceCurve, trajectoryAt, widthsAlong,
 } from "./geometry.js";
 import { MapView, el, pathData } from "./map.js";
 import { Plot } from "./plots.js";
+import { RUN_FORMAT, cycleAt, cycleData, decodeRun } from "./runfile.js";
+import { num, tree } from "./tree.js";
 
 const $ = (id) => document.getElementById(id);
 const body = document.body;
@@ -31,7 +33,6 @@ const defaults = { length: 4.5, width: 1.8, max_speed: 20, max_acceleration: 2, 
 let frenetLimit = 10000;
 //: most candidate points the fold test sends to /v1/frenet (in chunks of frenetLimit)
 const MAX_FOLD_POINTS = 100000;
-const RUN_FORMAT = "kappa-planner-run";
 
 const state = {
   token: 0,
@@ -144,65 +145,6 @@ function addNote(text) {
   n.className = "note";
   n.textContent = text;
   $("summary").appendChild(n);
-}
-
-function num(v, digits = 3) {
-  if (typeof v !== "number") return String(v);
-  if (Number.isInteger(v)) return String(v);
-  const a = Math.abs(v);
-  if (a !== 0 && (a < 1e-3 || a >= 1e6)) return v.toExponential(2);
-  return String(Number(v.toFixed(digits)));
-}
-
-/** Any JSON value as a tree of tables: new diagnostics fields show without changes here. Objects
- * of numbers whose key ends in `_ms` (stage times) get bars. */
-function tree(value, key = "") {
-  if (value === null || value === undefined) {
-    const span = document.createElement("span");
-    span.className = "null";
-    span.textContent = "null";
-    return span;
-  }
-  if (Array.isArray(value)) {
-    if (value.every((v) => typeof v !== "object" || v === null) && value.length <= 12) {
-      const span = document.createElement("span");
-      span.textContent = `[${value.map((v) => (typeof v === "number" ? num(v) : JSON.stringify(v))).join(", ")}]`;
-      return span;
-    }
-    const details = document.createElement("details");
-    const summary = document.createElement("summary");
-    summary.textContent = `${value.length} items`;
-    details.appendChild(summary);
-    value.slice(0, 200).forEach((v, i) => details.appendChild(tree({ [i]: v })));
-    return details;
-  }
-  if (typeof value === "object") {
-    const entries = Object.entries(value);
-    const timing = key.endsWith("_ms") && entries.length && entries.every(([, v]) => typeof v === "number");
-    const biggest = timing ? Math.max(...entries.map(([, v]) => Math.abs(v)), 1e-9) : 0;
-    const table = document.createElement("table");
-    for (const [k, v] of entries) {
-      const row = table.insertRow();
-      row.dataset.key = k;
-      const kc = row.insertCell();
-      kc.className = "key";
-      kc.textContent = k;
-      const vc = row.insertCell();
-      if (timing) {
-        const bar = document.createElement("span");
-        bar.className = "bar";
-        bar.style.width = `${Math.round((80 * Math.abs(v)) / biggest)}px`;
-        vc.append(bar, document.createTextNode(`${num(v, 2)} ms`));
-      } else {
-        vc.appendChild(tree(v, k));
-      }
-    }
-    return table;
-  }
-  const span = document.createElement("span");
-  if (typeof value === "string") span.className = "str";
-  span.textContent = typeof value === "number" ? num(value) : String(value);
-  return span;
 }
 
 function setDiagnostics(value) {
@@ -793,51 +735,8 @@ async function showConversion(kind, request, token, signal) {
 }
 
 // ------------------------------------------------------------------------------------------------
-// Runs (planner_tools.runfile: delta-coded fixed-point series)
+// Runs (decoded by runfile.js)
 // ------------------------------------------------------------------------------------------------
-
-function decodeRun(doc) {
-  if (doc.version !== 1) {
-    throw new ApiError({ code: "unsupported_run", message: `run file version ${doc.version}; this viewer reads version 1` });
-  }
-  const sc = doc.scale;
-  const d = doc.driven;
-  const driven = {
-    t: Array.from(decodeSeries(d.t, sc.t)),
-    xy: decodePoints(d.xy, sc.xy),
-    yaw: Array.from(decodeSeries(d.yaw, sc.yaw)),
-    v: Array.from(decodeSeries(d.v, sc.v)),
-    s: d.s ? Array.from(decodeSeries(d.s, sc.s)) : [],
-    d: d.d ? Array.from(decodeSeries(d.d, sc.d)) : [],
-  };
-  const cycles = doc.cycles.map((c) => ({ raw: c, decoded: null }));
-  return { doc, scale: sc, driven, cycles };
-}
-
-function cycleData(run, k) {
-  const entry = run.cycles[k];
-  if (entry.decoded) return entry.decoded;
-  const c = entry.raw;
-  const sc = run.scale;
-  let traj = null;
-  if (c.trajectory) {
-    const tr = c.trajectory;
-    const xy = decodePoints(tr.xy, sc.xy);
-    traj = {
-      t: xy.map((_, i) => i * tr.dt), x: xy.map((p) => p[0]), y: xy.map((p) => p[1]),
-      heading: Array.from(decodeSeries(tr.heading, sc.heading)), curvature: Array.from(decodeSeries(tr.curvature, sc.curvature)),
-      v: Array.from(decodeSeries(tr.v, sc.v)), a: Array.from(decodeSeries(tr.a, sc.a)),
-      s: Array.from(decodeSeries(tr.s, sc.s)), d: Array.from(decodeSeries(tr.d, sc.d)),
-    };
-  }
-  const folded = new Set(c.folded || []);
-  const alg4 = new Set(c.alg4_folds || []);
-  const candidates = (c.candidates || []).map((series, i) => ({
-    points: decodePoints(series, sc.xy), folds: alg4.has(i), folded: folded.has(i), chosen: c.chosen === i,
-  }));
-  entry.decoded = { ...c, traj, candidates, alg4 };
-  return entry.decoded;
-}
 
 function showRun(doc) {
   const run = decodeRun(doc);
@@ -887,17 +786,6 @@ function drawGoal(goal) {
     const r = interp(goal.s_min, state.road.curve.s, state.road.right);
     el("path", { class: "goal", d: pathData([[c.x - c.nx * r, c.y - c.ny * r], [c.x + c.nx * l, c.y + c.ny * l]]) }, map.layers.goal);
   }
-}
-
-function cycleAt(run, t) {
-  let lo = 0;
-  let hi = run.cycles.length - 1;
-  while (lo < hi) {
-    const mid = (lo + hi + 1) >> 1;
-    if (run.cycles[mid].raw.t <= t + 1e-9) lo = mid;
-    else hi = mid - 1;
-  }
-  return lo;
 }
 
 function showRunTime() {
