@@ -511,6 +511,12 @@ def main(argv: list[str] | None = None) -> int:
         if status != 200 or b'"status":"ok"' not in answer.replace(b" ", b""):
             raise ReplayError(f"POST /v1/plan of the demo answered {status}: {answer[:300]!r}")
         say("== GET /v1/demo → 200; POST /v1/plan (the demo) → 200, status ok")
+        # the viewer's files are package data: the non-editable install must hold them
+        for path in ("/viewer", "/viewer/viewer.js", "/viewer/run.schema.json"):
+            status, _ = http(f"{url}{path}")
+            if status != 200:
+                raise ReplayError(f"GET {path} answered {status}: the viewer's files are not installed")
+        say("== GET /viewer and its files → 200")
 
         if test:
             command = [part.replace("{url}", url) for part in test]

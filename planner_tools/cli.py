@@ -3,11 +3,12 @@
 * ``kappa-planner simulate ROAD.json --out DIR [--generator naive|transf_kappa]`` drives the planning
   request in ``ROAD.json`` (the body of ``POST /v1/plan``, e.g. from ``GET /v1/demo`` or
   ``tests/data/commonroad/*.json``) in closed loop (:func:`planner_tools.sim.simulate`) and writes a PNG
-  per key frame (every ``--frame-every`` seconds and the last), ``sim.gif``, ``steps.csv`` and
-  ``metrics.json``.
+  per key frame (every ``--frame-every`` seconds and the last), ``sim.gif``, ``steps.csv``,
+  ``metrics.json`` and ``run.json.gz``, the run file ``/viewer`` plays back (:mod:`planner_tools.runfile`).
 * ``kappa-planner compare ROAD.json --out DIR`` runs both generators and draws them side by side like
   Fig. 4 of the paper (``compare.png``: road, obstacles, driven paths, candidate fans at four points
-  along the road, a metrics table; ``compare.gif``), with ``metrics.json`` for both.
+  along the road, a metrics table; ``compare.gif``), with ``metrics.json`` for both and a run file
+  per generator (``run_naive.json.gz``, ``run_transf_kappa.json.gz``).
 * ``kappa-planner demo --out DIR`` is ``compare`` on the built-in demo U-turn.
 * ``kappa-planner commonroad SCENARIO [--out DIR]`` converts a CommonRoad scenario
   (:mod:`planner_tools.commonroad`: XML, a request JSON or a reduced scenario JSON) and drives it to the
@@ -37,6 +38,7 @@ from planner_tools.commonroad import CommonRoadError, load
 from planner_tools.extras import COMMONROAD, TOOLS, MissingExtraError
 from planner_tools.io import problem_from_json
 from planner_tools.records import run_record, summary, write_json, write_steps_csv
+from planner_tools.runfile import write_run
 from planner_tools.sim import BicycleModel, Goal, SimResult, simulate
 
 GENERATORS: tuple[Generator, ...] = ("naive", "transf_kappa")
@@ -86,8 +88,8 @@ def _run(problem: PlanningProblem, generator: Generator, args: argparse.Namespac
 
 
 def _write_run(result: SimResult, out: Path, args: argparse.Namespace, source: dict[str, Any]) -> list[Path]:
-    """Key frames, ``sim.gif`` (unless ``--no-gif``), ``steps.csv`` and ``metrics.json`` (``source``
-    first) of one run in ``out``; returns the key frames."""
+    """Key frames, ``sim.gif`` (unless ``--no-gif``), ``steps.csv``, ``metrics.json`` (``source``
+    first) and the run file ``run.json.gz`` of one run in ``out``; returns the key frames."""
     from planner_tools import render
 
     frames = render.write_key_frames(result, out, every=args.frame_every)
@@ -97,6 +99,7 @@ def _write_run(result: SimResult, out: Path, args: argparse.Namespace, source: d
         )
     write_steps_csv(result, out / "steps.csv")
     write_json({**source, **run_record(result)}, out / "metrics.json")
+    write_run(result, out / "run.json.gz", source)
     return frames
 
 
@@ -107,7 +110,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     result = _run(problem, args.generator or problem.options.generator, args)
     frames = _write_run(result, out, args, {"road": str(args.road)})
     print(summary([result]))
-    print(f"wrote {len(frames)} frames, {'' if args.no_gif else 'sim.gif, '}steps.csv, metrics.json to {out}")
+    print(
+        f"wrote {len(frames)} frames, {'' if args.no_gif else 'sim.gif, '}steps.csv, metrics.json, "
+        f"run.json.gz (open /viewer and drop it) to {out}"
+    )
     return 0
 
 
@@ -124,12 +130,16 @@ def _compare(problem: PlanningProblem, road: str, args: argparse.Namespace) -> i
         )
     for r in results:
         write_steps_csv(r, out / f"steps_{r.problem.options.generator}.csv")
+        write_run(r, out / f"run_{r.problem.options.generator}.json.gz", {"road": road})
     write_json(
         {"road": road, "runs": {r.problem.options.generator: run_record(r) for r in results}},
         out / "metrics.json",
     )
     print(summary(results))
-    print(f"wrote compare.png, {'' if args.no_gif else 'compare.gif, '}steps_*.csv, metrics.json to {out}")
+    print(
+        f"wrote compare.png, {'' if args.no_gif else 'compare.gif, '}steps_*.csv, metrics.json, "
+        f"run_*.json.gz (open /viewer and drop one) to {out}"
+    )
     return 0
 
 
@@ -162,7 +172,7 @@ def _cmd_commonroad(args: argparse.Namespace) -> int:
         _write_run(result, out, args, {"scenario": str(args.scenario)})
         print(
             f"wrote request.json, conversion.json, key frames, {'' if args.no_gif else 'sim.gif, '}"
-            f"steps.csv, metrics.json to {out}"
+            f"steps.csv, metrics.json, run.json.gz to {out}"
         )
     return 0
 

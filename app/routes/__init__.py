@@ -2,7 +2,7 @@
 
 from fastapi import APIRouter
 
-from app.routes import candidates, coordinates, demo, health, metrics, plan
+from app.routes import candidates, coordinates, demo, health, metrics, plan, viewer
 
 routers: list[APIRouter] = [
     coordinates.router,
@@ -11,4 +11,5 @@ routers: list[APIRouter] = [
     demo.router,
     health.router,
     metrics.router,
+    viewer.router,
 ]
