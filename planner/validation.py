@@ -18,7 +18,8 @@ from shapely.geometry.base import BaseGeometry
 
 from planner.collision import box_corners, footprints, prediction_at
 from planner.frenet import to_frenet
-from planner.problem import DynamicObstacle, PlanningProblem
+from planner.kinematics import lateral_acceleration, planned_point, steering_angle
+from planner.problem import DynamicObstacle, PlanningProblem, Vehicle
 from planner.reference import FloatArray, ReferenceLine, widths_at
 from planner.trajectory import Trajectory
 
@@ -87,6 +88,12 @@ class ViolationKind(StrEnum):
     HITS_OBSTACLE = "hits_obstacle"
     #: the footprint meets a moving obstacle at its predicted pose at the same time
     HITS_MOVING_OBSTACLE = "hits_moving_obstacle"
+    #: a car's rear axle does not move along the body's yaw (:func:`car_violations`)
+    REAR_AXLE_SLIPS = "rear_axle_slips"
+    #: a car's ``|steering_angle|`` above its ``max_steering_angle``
+    STEERING_ANGLE = "steering_angle"
+    #: a car's steering rate ``|dδ/dt|`` above its ``max_steering_rate``
+    STEERING_RATE = "steering_rate"
 
 
 #: the kinds that are collisions; the others break a limit without hitting anything by themselves
@@ -102,7 +109,8 @@ class Violation:
         obstacle_id: the obstacle hit (the two ``HITS_*`` kinds), else None.
         t: the first time it happens [s], None where a time means nothing (self-intersection).
         value: the worst value where the message states one (``CURVATURE`` [1/m],
-            ``LATERAL_ACCELERATION`` [m/s²]), else None.
+            ``LATERAL_ACCELERATION`` [m/s²], ``REAR_AXLE_SLIPS``, ``STEERING_ANGLE`` [rad],
+            ``STEERING_RATE`` [rad/s]), else None.
     """
 
     kind: ViolationKind
@@ -122,6 +130,12 @@ class Violation:
             return f"footprint hits obstacle {self.obstacle_id}"
         if kind is ViolationKind.HITS_MOVING_OBSTACLE:
             return f"footprint hits moving obstacle {self.obstacle_id}"
+        if kind is ViolationKind.REAR_AXLE_SLIPS:
+            return f"the rear axle moves {self.value:.3f} rad off the body's yaw"
+        if kind is ViolationKind.STEERING_ANGLE:
+            return f"steering angle {self.value:.3f} rad above max_steering_angle"
+        if kind is ViolationKind.STEERING_RATE:
+            return f"steering rate {self.value:.3f} rad/s above max_steering_rate"
         return _MESSAGES[kind]
 
     def __str__(self) -> str:
@@ -152,12 +166,15 @@ def trajectory_violations(
 ) -> list[Violation]:
     """Every check a returned trajectory must pass, in this order; an empty list when it passes them all.
 
-    Starts at the ego; ``1 − κ·d > 0``; ``|curvature| ≤ max_curvature`` while moving and
-    ``v²·|curvature| ≤ max_lateral_acceleration``; acceleration within the limits; consecutive positions
-    consistent with ``v·dt``; ``s`` never decreasing and strictly increasing while moving; no
-    self-intersection; footprint inside the lane (all four corners by TransF-κ; no further out than the
-    measured start where that is already partly outside) and clear of every static obstacle and of
-    every moving one at its predicted pose at the same time.
+    Starts at the ego; ``1 − κ·d > 0``; ``|curvature| ≤ max_curvature`` (a car's
+    :attr:`~planner.problem.Vehicle.curvature_limit`) while moving and the body's lateral acceleration
+    (:func:`planner.kinematics.lateral_acceleration`, ``v²·|curvature|`` for the point model) at most
+    ``max_lateral_acceleration``; acceleration within the limits; consecutive positions of the planned
+    point (the centre, a car's rear axle) consistent with ``v·dt``; ``s`` never decreasing and strictly
+    increasing while moving; no self-intersection; footprint inside the lane (all four corners by
+    TransF-κ; no further out than the measured start where that is already partly outside) and clear of
+    every static obstacle and of every moving one at its predicted pose at the same time; for a car,
+    its kinematics (:func:`car_violations`).
     """
     vehicle, ego, t = problem.vehicle, problem.ego, traj.t
     kind = ViolationKind
@@ -170,10 +187,10 @@ def trajectory_violations(
     if np.any(folded):
         out.append(Violation(kind.KAPPA_D, t=_first(t, folded)))
     curv = np.abs(traj.curvature)
-    sharp = moving & (curv > vehicle.max_curvature * (1 + _RATE_TOL) + _CURVATURE_TOL)
+    sharp = moving & (curv > vehicle.curvature_limit * (1 + _RATE_TOL) + _CURVATURE_TOL)
     if np.any(sharp):
         out.append(Violation(kind.CURVATURE, t=_first(t, sharp), value=float(curv[moving].max())))
-    lat = traj.v**2 * curv
+    lat = lateral_acceleration(traj.v, curv, vehicle)
     sliding = lat > vehicle.max_lateral_acceleration * (1 + _RATE_TOL) + _LATERAL_TOL
     if np.any(sliding):
         out.append(Violation(kind.LATERAL_ACCELERATION, t=_first(t, sliding), value=float(lat.max())))
@@ -183,7 +200,8 @@ def trajectory_violations(
     if np.any(outside_limits):
         out.append(Violation(kind.ACCELERATION, t=_first(t, outside_limits)))
     dt = np.diff(t)
-    step = np.hypot(np.diff(traj.x), np.diff(traj.y))
+    px, py = planned_point(traj.x, traj.y, traj.heading, vehicle)
+    step = np.hypot(np.diff(px), np.diff(py))
     expected = 0.5 * (traj.v[:-1] + traj.v[1:]) * dt
     inconsistent = np.abs(step - expected) > _STEP_ABS_TOL + _STEP_REL_TOL * expected
     if np.any(inconsistent):
@@ -221,4 +239,51 @@ def trajectory_violations(
             hits = shapely.intersects(prints, boxes)
             if np.any(hits):
                 out.append(Violation(kind.HITS_MOVING_OBSTACLE, obstacle_id=ob.id, t=_first(t, hits)))
+    if vehicle.is_car:
+        out += car_violations(vehicle, traj)
+    return out
+
+
+#: a car's rear axle may move this far off its yaw [rad]: far below the slip of its centre in a turn
+#: (``atan(l_r κ)``, 10–20° for a car's), above the chord-vs-heading error of a path sampled between
+#: knots half a metre apart (``κΔ/2``, 4° at 0.3 1/m)
+_SLIP_TOL = 0.1
+#: steps shorter than this [m] carry no usable direction
+_DIRECTION_STEP = 0.01
+#: absolute tolerances on a car's steering angle [rad] and rate [rad/s]
+_STEERING_TOL, _STEERING_RATE_TOL = 1e-4, 1e-3
+
+
+def car_violations(vehicle: Vehicle, traj: Trajectory) -> list[Violation]:
+    """A car's kinematics along ``traj`` (its points the footprint's centre, ``heading`` the body's yaw,
+    ``curvature`` the rear axle's path's, ``steering_angle`` δ): the rear axle, ``l_r`` behind the centre
+    along the yaw, moves along the yaw (each step's direction within :data:`_SLIP_TOL` of the mean yaw);
+    ``|δ| ≤ max_steering_angle``; ``|Δδ/Δt| ≤ max_steering_rate`` between consecutive points (when
+    given). In this order; [] for the point model."""
+    if not vehicle.is_car:
+        return []
+    kind, t = ViolationKind, traj.t
+    out: list[Violation] = []
+    x, y = planned_point(traj.x, traj.y, traj.heading, vehicle)
+    dx, dy = np.diff(x), np.diff(y)
+    mean_yaw = traj.heading[:-1] + 0.5 * np.diff(traj.heading)
+    off = np.abs(np.angle(np.exp(1j * (np.arctan2(dy, dx) - mean_yaw))))
+    slips = (np.hypot(dx, dy) > _DIRECTION_STEP) & (off > _SLIP_TOL)
+    if np.any(slips):
+        out.append(Violation(kind.REAR_AXLE_SLIPS, t=_first(t, slips), value=float(off[slips].max())))
+    delta = traj.steering_angle
+    if delta is None:
+        delta = steering_angle(traj.curvature, vehicle)
+    limit = vehicle.steering_limit
+    if limit is not None:
+        beyond = np.abs(delta) > limit * (1 + _RATE_TOL) + _STEERING_TOL
+        if np.any(beyond):
+            worst = float(np.abs(delta).max())
+            out.append(Violation(kind.STEERING_ANGLE, t=_first(t, beyond), value=worst))
+    rate_limit = vehicle.max_steering_rate
+    if rate_limit is not None and t.shape[0] > 1:
+        rate = np.abs(np.diff(delta)) / np.maximum(np.diff(t), 1e-12)
+        fast = rate > rate_limit * (1 + _RATE_TOL) + _STEERING_RATE_TOL
+        if np.any(fast):
+            out.append(Violation(kind.STEERING_RATE, t=_first(t, fast), value=float(rate.max())))
     return out
