@@ -121,27 +121,26 @@ class Violation:
     @property
     def message(self) -> str:
         """The check in words, as answers report it."""
-        kind = self.kind
-        if kind is ViolationKind.CURVATURE:
-            return f"curvature {self.value:.3f} 1/m above max_curvature"
-        if kind is ViolationKind.LATERAL_ACCELERATION:
-            return f"lateral acceleration {self.value:.2f} m/s² above the limit"
-        if kind is ViolationKind.HITS_OBSTACLE:
-            return f"footprint hits obstacle {self.obstacle_id}"
-        if kind is ViolationKind.HITS_MOVING_OBSTACLE:
-            return f"footprint hits moving obstacle {self.obstacle_id}"
-        if kind is ViolationKind.REAR_AXLE_SLIPS:
-            return f"the rear axle moves {self.value:.3f} rad off the body's yaw"
-        if kind is ViolationKind.STEERING_ANGLE:
-            return f"steering angle {self.value:.3f} rad above max_steering_angle"
-        if kind is ViolationKind.STEERING_RATE:
-            return f"steering rate {self.value:.3f} rad/s above max_steering_rate"
-        return _MESSAGES[kind]
+        template = _TEMPLATES.get(self.kind)
+        if template is None:
+            return _MESSAGES[self.kind]
+        return template.format(value=self.value, obstacle_id=self.obstacle_id)
 
     def __str__(self) -> str:
         return self.message
 
 
+#: the messages of the kinds that state a value or an obstacle
+_TEMPLATES = {
+    ViolationKind.CURVATURE: "curvature {value:.3f} 1/m above max_curvature",
+    ViolationKind.LATERAL_ACCELERATION: "lateral acceleration {value:.2f} m/s² above the limit",
+    ViolationKind.HITS_OBSTACLE: "footprint hits obstacle {obstacle_id}",
+    ViolationKind.HITS_MOVING_OBSTACLE: "footprint hits moving obstacle {obstacle_id}",
+    ViolationKind.REAR_AXLE_SLIPS: "the rear axle moves {value:.3f} rad off the body's yaw",
+    ViolationKind.STEERING_ANGLE: "steering angle {value:.3f} rad above max_steering_angle",
+    ViolationKind.STEERING_RATE: "steering rate {value:.3f} rad/s above max_steering_rate",
+}
+#: the messages of the others
 _MESSAGES = {
     ViolationKind.START: "does not start at the ego",
     ViolationKind.KAPPA_D: "1 − κ·d ≤ 0 at some point",
