@@ -177,13 +177,16 @@ def candidate_data(cs: CandidateSet) -> list[dict[str, Any]]:
     return out
 
 
-_TRAJECTORY_FIELDS = tuple(TrajectoryPoint.model_fields)
+#: the fields of a trajectory point of the point model, and of a car (its steering angle too)
+_POINT_FIELDS = tuple(name for name in TrajectoryPoint.model_fields if name != "steering_angle")
+_CAR_FIELDS = (*_POINT_FIELDS, "steering_angle")
 
 
 def plan_data(result: PlanResult) -> dict[str, Any]:
     """The answer to :func:`planner.pipeline.plan`'s ``result`` as the JSON data of
     :class:`~app.models.plan.PlanResponse` (plain lists and dicts built from the arrays, ready for
-    ``pydantic_core.to_json``; ``candidates`` only when the planner returned them; every stage of
+    ``pydantic_core.to_json``; each point's ``steering_angle`` only for a car; ``candidates`` only when
+    the planner returned them; every stage of
     :data:`~app.models.plan.STAGES`, 0 for one that did not run).
 
     A non-finite number or an unknown solver status is a bug and raises ``ValueError``.
@@ -191,7 +194,8 @@ def plan_data(result: PlanResult) -> dict[str, Any]:
     if result.status not in get_args(PlanStatus):
         raise ValueError(f"unknown plan status {result.status!r}")
     traj = result.trajectory
-    columns = [np.asarray(getattr(traj, name), dtype=float) for name in _TRAJECTORY_FIELDS]
+    names = _POINT_FIELDS if traj.steering_angle is None else _CAR_FIELDS
+    columns = [np.asarray(getattr(traj, name), dtype=float) for name in names]
     _require_finite("the trajectory", *columns)
     rows = zip(*(c.tolist() for c in columns), strict=True)
     diag = result.diagnostics
@@ -200,7 +204,7 @@ def plan_data(result: PlanResult) -> dict[str, Any]:
     data: dict[str, Any] = {
         "status": result.status,
         "message": str(result.message),
-        "trajectory": [dict(zip(_TRAJECTORY_FIELDS, row, strict=True)) for row in rows],
+        "trajectory": [dict(zip(names, row, strict=True)) for row in rows],
     }
     if result.candidates is not None:
         data["candidates"] = candidate_data(result.candidates)

@@ -7,8 +7,9 @@ in bounded time and answers in bounded size. They lie inside the planner's own s
 and are named differently where the planner has a cap on the same quantity (the names of the
 planner's in parentheses):
 
-* lane width, obstacle size, vehicle length and width: :data:`MAX_LANE_WIDTH`,
-  :data:`MAX_OBSTACLE_SIZE`, :data:`MAX_VEHICLE_LENGTH`, :data:`MAX_VEHICLE_WIDTH` (``MAX_SIZE``);
+* lane width, obstacle size, vehicle length and width, wheelbase: :data:`MAX_LANE_WIDTH`,
+  :data:`MAX_OBSTACLE_SIZE`, :data:`MAX_VEHICLE_LENGTH`, :data:`MAX_VEHICLE_WIDTH`,
+  :data:`MAX_WHEELBASE` (``MAX_SIZE``);
 * speeds: :data:`MAX_VEHICLE_SPEED` (``MAX_EGO_SPEED``);
 * accelerations: :data:`MAX_VEHICLE_ACCELERATION` (``MAX_ACCELERATION``),
   :data:`MIN_VEHICLE_ACCELERATION` (``SMALLEST_LIMIT``);
@@ -75,6 +76,13 @@ MAX_VEHICLE_CURVATURE = 100.0
 MIN_VEHICLE_ACCELERATION, MIN_VEHICLE_CURVATURE = 0.01, 1e-4
 #: largest vehicle length and width [m]
 MAX_VEHICLE_LENGTH, MAX_VEHICLE_WIDTH = 100.0, 20.0
+#: largest wheelbase of a car [m] (its length's limit)
+MAX_WHEELBASE = MAX_VEHICLE_LENGTH
+#: limits of a car's steering angle limit [rad]: from 0.001 rad (0.06°: a turning radius of 2.7 km for a
+#: 2.7 m wheelbase) to about 86°, short of the 90° at which tan δ diverges
+MIN_STEERING_ANGLE, MAX_STEERING_ANGLE = 1e-3, 1.5
+#: limits of a car's steering rate limit [rad/s]: below 0.001 rad/s (0.06°/s) no car can steer at all
+MIN_STEERING_RATE, MAX_STEERING_RATE = 1e-3, 100.0
 
 # -- options -----------------------------------------------------------------------------------
 

@@ -11,9 +11,18 @@ Goal: the scenario's goal region as an arc length ``s_min`` on the reference; a 
 time window only (CommonRoad's "survive until …") gets ``min(reference end − one vehicle length,
 s_ego + target_speed · duration · 0.6)``, a distance it can reach in the time allowed.
 
+Vehicle (``--vehicle``): the requests' own (``request``: the point model for the shared requests, the
+car of CommonRoad's vehicle type 2 for XML), that car (``car``: wheelbase, rear axle, steering limits of
+the BMW 320i), or the same footprint as the point model (``point``). ``--feasibility`` (the extra
+``commonroad``) judges every driven transition, every 0.1 s, with commonroad-drivability-checker's
+kinematic single-track feasibility check of vehicle type 2 (its position and orientation tolerances,
+its steering limits), as a CommonRoad solution of the driven motion would be judged.
+
 Columns: goal reached, collisions (sub-steps whose footprint hits an obstacle), min clearance of the
-footprint to any obstacle [m], median / max wall time of one ``plan`` call [ms], replan cycles, the
-plans' status counts (ok / stopped / fallback / error), how the run ended, and the distance driven.
+footprint to any obstacle [m], the farthest a footprint corner got outside the lane [m] (≤ 0: inside),
+median / max wall time of one ``plan`` call [ms], replan cycles, the plans' status counts (ok / stopped /
+fallback / error), how the run ended, the distance driven, and with ``--feasibility`` the feasible
+transitions.
 """
 
 from __future__ import annotations
@@ -22,7 +31,7 @@ import argparse
 import os
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 # bench/ itself must not be on the path: this file would shadow the commonroad package
@@ -31,7 +40,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from planner.frenet import to_frenet  # noqa: E402
 from planner.reference import build_reference  # noqa: E402
-from planner_tools.commonroad import Conversion, load  # noqa: E402 (after the path fix)
+from planner_tools.commonroad import (  # noqa: E402 (after the path fix)
+    Conversion,
+    car_vehicle,
+    driven_states,
+    feasible_transitions,
+    load,
+    point_vehicle,
+)
 from planner_tools.io import problem_from_json  # noqa: E402
 from planner_tools.sim import Goal, SimResult, simulate  # noqa: E402
 
@@ -42,12 +58,17 @@ RESULTS = ROOT / "bench" / "results"
 SURVIVAL_SHARE = 0.6
 
 
+#: the step [s] at which driven transitions are judged (the replan period)
+FEASIBILITY_DT = 0.1
+
+
 @dataclass(frozen=True)
 class Row:
     name: str
     result: SimResult
     goal_s: float
     wall_s: float
+    feasible: list[bool] | None = None
 
 
 def scenario_goal(conv: Conversion, duration: float) -> float:
@@ -63,39 +84,66 @@ def scenario_goal(conv: Conversion, duration: float) -> float:
     return float(min(end, s_ego + speed * duration * SURVIVAL_SHARE))
 
 
-def run_one(path: Path, duration: float) -> Row:
+def run_one(path: Path, duration: float, vehicle: str = "request", feasibility: bool = False) -> Row:
     conv = load(path)
+    if vehicle != "request":
+        made = car_vehicle if vehicle == "car" else point_vehicle
+        conv = replace(conv, request={**conv.request, "vehicle": made(conv.request["vehicle"])})
     problem = problem_from_json(conv.request)
     goal_s = scenario_goal(conv, duration)
     t0 = time.perf_counter()
     result = simulate(problem, duration=duration, goal=Goal(s_min=goal_s))
-    return Row(conv.name, result, goal_s, time.perf_counter() - t0)
+    wall = time.perf_counter() - t0
+    feasible = None
+    if feasibility:
+        feasible = feasible_transitions(driven_states(result.motion, FEASIBILITY_DT), FEASIBILITY_DT)
+    return Row(conv.name, result, goal_s, wall, feasible)
 
 
 def _fmt(value: float | None, digits: int = 2) -> str:
     return "—" if value is None else f"{value:.{digits}f}"
 
 
+def _share(feasible: list[bool]) -> str:
+    return f"{sum(feasible)} / {len(feasible)}" if feasible else "—"
+
+
+def _percent(feasible: list[bool]) -> str:
+    return f"{100.0 * sum(feasible) / max(len(feasible), 1):.1f} %"
+
+
 def table(rows: list[Row]) -> str:
+    judged = any(r.feasible is not None for r in rows)
     head = (
-        "| scenario | goal reached | collisions | min clearance [m] | plan median [ms] | plan max [ms] "
-        "| steps | ok / stopped / fallback / error | end | driven [m] / goal [m] |"
+        "| scenario | goal reached | collisions | min clearance [m] | lane departure [m] | plan median [ms] "
+        "| plan max [ms] | steps | ok / stopped / fallback / error | end | driven [m] / goal [m] |"
     )
-    lines = [head, "|" + "---|" * 10]
+    head += " feasible transitions |" if judged else ""
+    lines = [head, "|" + "---|" * (12 if judged else 11)]
     for r in rows:
         m = r.result.metrics
         c = m.status_counts
         start = float(r.result.motion.s[0])
-        lines.append(
+        line = (
             f"| {r.name} | {'yes' if m.goal_reached else 'no'} | {m.collisions} | {_fmt(m.min_clearance)} "
-            f"| {m.planning_ms['median']:.0f} | {m.planning_ms['max']:.0f} | {m.steps} "
-            f"| {c['ok']} / {c['stopped']} / {c['fallback']} / {c['error']} | {m.termination} "
+            f"| {m.max_lane_departure:.2f} | {m.planning_ms['median']:.0f} | {m.planning_ms['max']:.0f} "
+            f"| {m.steps} | {c['ok']} / {c['stopped']} / {c['fallback']} / {c['error']} | {m.termination} "
             f"| {m.final_s - start:.0f} / {r.goal_s - start:.0f} |"
         )
+        lines.append(line + (f" {_share(r.feasible or [])} |" if judged else ""))
     reached = sum(r.result.metrics.goal_reached for r in rows)
     hits = sum(r.result.metrics.collisions > 0 for r in rows)
+    departed = sum(r.result.metrics.max_lane_departure > 1e-3 for r in rows)
     lines.append("")
-    lines.append(f"{reached}/{len(rows)} goals reached, {hits} runs with a collision.")
+    summary = f"{reached}/{len(rows)} goals reached, {hits} runs with a collision, {departed} off the lane."
+    if judged:
+        every = [f for r in rows for f in (r.feasible or [])]
+        clean = [f for r in rows if r.result.metrics.collisions == 0 for f in (r.feasible or [])]
+        summary += (
+            f" Feasible transitions: {_share(every)} ({_percent(every)}); on the runs without a collision "
+            f"{_share(clean)} ({_percent(clean)})."
+        )
+    lines.append(summary)
     return "\n".join(lines)
 
 
@@ -107,6 +155,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--only", nargs="*", default=None, help="scenario names (file stems) to run")
     parser.add_argument("--out", type=Path, default=None, help="markdown file (default bench/results/…)")
+    parser.add_argument(
+        "--vehicle", choices=("request", "car", "point"), default="request", help="see the module docstring"
+    )
+    parser.add_argument(
+        "--feasibility", action="store_true", help="judge the driven transitions with CommonRoad's checker"
+    )
     args = parser.parse_args(argv)
 
     if args.xml is None:
@@ -122,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[Row] = []
     t0 = time.perf_counter()
     for path in paths:
-        row = run_one(path, args.duration)
+        row = run_one(path, args.duration, args.vehicle, args.feasibility)
         m = row.result.metrics
         print(
             f"{row.name}: {m.termination} after {m.sim_time:.1f} s sim, {m.steps} steps, "
@@ -135,7 +189,8 @@ def main(argv: list[str] | None = None) -> int:
     cpu = os.cpu_count()
     header = (
         f"# Closed loop on CommonRoad scenarios\n\n"
-        f"`python bench/commonroad.py{'' if args.xml is None else ' --xml ' + str(args.xml)}`: {source}; "
+        f"`python bench/commonroad.py{' '.join(['', *(argv if argv is not None else sys.argv[1:])])}`: "
+        f"{source}; vehicle: {args.vehicle}; "
         f"replan every 0.1 s, at most {args.duration:.0f} s simulated per scenario; "
         f"{total:.0f} s wall on {cpu} cores.\n\n"
     )

@@ -3,7 +3,8 @@
 * the lateral QP alone on 200 knots (Δs = 0.5 m), warm-started, free and with an obstacle bound active;
 * the speed stage alone (N = 80, Δt = 0.1 s) with a curvature dip and a leader;
 * whole plans on an 8 s horizon with 3 obstacles (the demo U-turn with a parked car and a leader added,
-  and a straight road), median and p99, with the per-stage breakdown from the plan's diagnostics.
+  and a straight road), for the point model and for a car, median and p99, with the per-stage
+  breakdown from the plan's diagnostics.
 
 Targets (issue 3): lateral QP ≤ 3 ms median; speed ≤ 10 ms median; plan ≤ 25 ms median, ≤ 60 ms p99.
 """
@@ -110,7 +111,12 @@ def scenes() -> dict[str, PlanningProblem]:
         Vehicle(),
         Options(target_speed=15.0),
     )
-    return {"demo U-turn + parked car + leader": u_turn, "straight road, 3 obstacles": highway}
+    scenes = {"demo U-turn + parked car + leader": u_turn, "straight road, 3 obstacles": highway}
+    # the same scenes for a car (wheelbase 2.7 m, rear axle 1.35 m behind the centre, 0.5 rad/s steering)
+    car = {"wheelbase": 2.7, "rear_axle_offset": 1.35, "max_steering_rate": 0.5}
+    for name, problem in list(scenes.items()):
+        scenes[f"{name}, a car"] = replace(problem, vehicle=replace(problem.vehicle, **car))
+    return scenes
 
 
 def bench_plans() -> None:

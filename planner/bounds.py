@@ -1,12 +1,13 @@
 """Lateral bounds per knot: lane, obstacles on their decided side, and the κ·d bound.
 
-For knots ``s_i`` [m] along the reference, the vehicle's centre offset must keep
-``lower_i ≤ d_i ≤ upper_i``:
+For knots ``s_i`` [m] along the reference, the planned point's offset (the vehicle's centre, or a
+car's rear axle: :class:`planner.problem.Vehicle`) must keep ``lower_i ≤ d_i ≤ upper_i``:
 
 * lane: left and right widths less half the vehicle width and a margin;
 * obstacles (Frenet boxes ``[s_min, s_max] × [d_min, d_max]``): where the footprint's extent along
-  ``s`` overlaps the box, ``d ≥ d_max + w/2 + margin`` when passing on its left, ``d ≤ d_min − w/2 − margin``
-  on its right;
+  ``s`` (``[s − L/2 + l_r, s + L/2 + l_r]`` from the planned point, ``l_r`` a car's rear axle offset, 0
+  for the point model) overlaps the box, ``d ≥ d_max + w/2 + margin`` when passing on its left,
+  ``d ≤ d_min − w/2 − margin`` on its right;
 * κ·d in its vehicle-feasible form: an offset path has curvature ``κ/(1 − κ·d)``, so requiring
   ``1 − κ_i·d_i ≥ |κ_i|/κ_max`` (linear in ``d``) keeps ``κ·d < 1`` and the path drivable; where the
   reference is tighter than ``1/κ_max`` it forces the path outwards.
@@ -22,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.collision import FrenetBoxes, box_corners
+from planner.collision import FrenetBoxes, box_corners, footprint_extent
 from planner.frenet import to_cartesian, to_frenet
 from planner.lane import lane_bounds
 from planner.problem import Lane, Vehicle
@@ -68,7 +69,7 @@ RIGHT_CORNERS, LEFT_CORNERS = (0, 1), (2, 3)
 
 @dataclass(frozen=True)
 class CornerReach:
-    """The footprint's corners when its centre is on a knot, aligned with the reference, each of shape
+    """The footprint's corners when its planned point is on a knot, aligned with the reference, each of shape
     ``(n, 4)`` (rear right, front right, front left, rear left): their arc lengths ``s`` [m] on the
     reference and how far [m] each reaches beyond the side it is on (0 where it stays within ``W/2``)."""
 
@@ -89,19 +90,26 @@ class CornerReach:
 def curve_bulge(
     ref: ReferenceLine, s: FloatArray, vehicle: Vehicle, d: FloatArray | None = None
 ) -> CornerReach:
-    """The footprint's corners at knots ``s`` [m], its centre at offsets ``d`` [m] (default 0) and its
-    axis along the reference's heading, mapped to Frenet coordinates by TransF-κ as the trajectory
-    checks map them.
+    """The footprint's corners at knots ``s`` [m], its planned point at offsets ``d`` [m] (default 0) and
+    its axis along the reference's heading there, mapped to Frenet coordinates by TransF-κ as the
+    trajectory checks map them. The footprint is placed from the planned point along that heading: its
+    centre is the point for the point model, ``l_r`` ahead of a car's rear axle.
 
     The body is straight and the reference bends away from it: on the outside of a curve the front and
-    rear corners reach beyond ``W/2`` (by about the sagitta ``κ(L/2)²/2`` of a chord of the body's
-    length, less where the curve tightens under one end only), a left turn to the right and a right
-    turn to the left. And on a curve the outer corners lie less than ``L/2`` ahead of and behind the
-    centre along the reference (about ``(L/2)/(1 + |κ|(d + W/2))`` on the outside).
+    rear corners reach beyond ``W/2`` (by about the sagitta ``κf²/2`` of the front, ``f = L/2 + l_r``
+    ahead of the planned point, and ``κb²/2`` of the rear, ``b = L/2 − l_r`` behind it, less where the
+    curve tightens under one end only), a left turn to the right and a right turn to the left. And on a
+    curve the outer corners lie less than ``f`` ahead of and ``b`` behind the point along the reference
+    (about ``f/(1 + |κ|(d + W/2))`` on the outside).
     """
     d0 = np.zeros_like(s) if d is None else np.asarray(d, dtype=float)
-    centre = to_cartesian(ref, s, d0)
-    corners = box_corners(centre[:, 0], centre[:, 1], ref.heading_at(s), vehicle.length, vehicle.width)
+    point = to_cartesian(ref, s, d0)
+    heading = ref.heading_at(s)
+    x, y = point[:, 0], point[:, 1]
+    offset = vehicle.rear_offset
+    if offset:
+        x, y = x + offset * np.cos(heading), y + offset * np.sin(heading)
+    corners = box_corners(x, y, heading, vehicle.length, vehicle.width)
     fr = to_frenet(ref, corners.reshape(-1, 2))
     side = np.array([-1.0, -1.0, 1.0, 1.0])  # right corners reach out to negative d
     reach = side * (fr.d.reshape(-1, 4) - d0[:, None]) - 0.5 * vehicle.width
@@ -124,12 +132,15 @@ def lateral_bounds(
 
     ``margin`` [m] is kept to the obstacles and, unless ``lane_margin`` [m] is given, to the lane's edges.
 
-    With the path's expected heading error to the reference ``θ`` [rad] per knot, the footprint's
-    lateral half-extent is ``L/2·|sin θ| + W/2·cos θ`` rather than ``W/2``.
+    With the path's expected heading error to the reference ``θ`` [rad] per knot, the footprint reaches
+    :func:`planner.collision.footprint_extent` to either side rather than ``W/2``: ``L/2·|sin θ| + W/2·cos θ``
+    for the point model; for a car (planned at its rear axle) its front swings out by ``(L/2 + l_r)·sin θ``
+    to the side it turns to, its rear by ``(L/2 − l_r)·sin θ`` to the other.
     """
     theta = np.zeros_like(s) if heading_error is None else np.asarray(heading_error)
-    half_extent = 0.5 * vehicle.length * np.abs(np.sin(theta)) + 0.5 * vehicle.width * np.cos(theta)
-    half_l, half_w = 0.5 * vehicle.length, 0.5 * vehicle.width
+    turned_extent = footprint_extent(theta, vehicle, 0.0)
+    ext_right, ext_left = turned_extent.right, turned_extent.left
+    ahead, behind, half_w = vehicle.front_extent, vehicle.rear_extent, 0.5 * vehicle.width
     edge = margin if lane_margin is None else lane_margin
     k_lower, k_upper = _turning_limits(ref, lane, s, vehicle)
     # the corners where the path is at the least offset the turning limit leaves it (d = 0 elsewhere)
@@ -139,8 +150,8 @@ def lateral_bounds(
         """Lower and upper bound from the obstacles, for footprint half-extents ``right`` and ``left``."""
         if not boxes.count:
             return np.full(s.shape, -np.inf), np.full(s.shape, np.inf)
-        overlaps = (s[:, None] + half_l + margin >= boxes.s_min) & (
-            s[:, None] - half_l - margin <= boxes.s_max
+        overlaps = (s[:, None] + ahead + margin >= boxes.s_min) & (
+            s[:, None] - behind - margin <= boxes.s_max
         )
         right_col = np.broadcast_to(right, s.shape)[:, None]
         left_col = np.broadcast_to(left, s.shape)[:, None]
@@ -165,12 +176,12 @@ def lateral_bounds(
     # lane's edge: each corner against the lane's width where it is (a lane flaring out in a turn gives
     # the corner that bulges into it the room it has there, and one narrowing ahead takes it).
     turned = lane_bounds(ref, lane, s, half_width=0.0, margin=edge)
-    lo, up = turned.lower + half_extent, turned.upper - half_extent
-    obs_lo, obs_up = obstacle_edges(half_extent, half_extent)
+    lo, up = turned.lower + ext_right, turned.upper - ext_left
+    obs_lo, obs_up = obstacle_edges(ext_right, ext_left)
     lo, up = np.maximum(lo, obs_lo), np.minimum(up, obs_up)
     fits = (lo <= up) & ~narrow
     lower, upper = np.where(fits, lo, lower), np.where(fits, up, upper)
-    obs_lo, obs_up = obstacle_edges(half_extent + corners.right, half_extent + corners.left)
+    obs_lo, obs_up = obstacle_edges(ext_right + corners.right, ext_left + corners.left)
     lo, up = np.maximum(lo, obs_lo), np.minimum(up, obs_up)
     # (Behind the first knot, where the vehicle comes from, the lane is taken as wide as at that knot:
     # a reference often starts just behind the vehicle, where the lane's edges may close in.)
@@ -178,9 +189,9 @@ def lateral_bounds(
     left_w = widths_at(lane.left_width, ref, corner_s, field_name="lane.left_width")
     right_w = widths_at(lane.right_width, ref, corner_s, field_name="lane.right_width")
     for c in RIGHT_CORNERS:
-        lo = np.maximum(lo, -right_w[:, c] + edge + half_extent + corners.reach[:, c])
+        lo = np.maximum(lo, -right_w[:, c] + edge + ext_right + corners.reach[:, c])
     for c in LEFT_CORNERS:
-        up = np.minimum(up, left_w[:, c] - edge - half_extent - corners.reach[:, c])
+        up = np.minimum(up, left_w[:, c] - edge - ext_left - corners.reach[:, c])
     fits = (lo <= up) & ~narrow
     lower, upper = np.where(fits, lo, lower), np.where(fits, up, upper)
     # Last, the turning limit: where the lane leaves no room within it, the road is blocked for this
@@ -197,7 +208,8 @@ def _turning_limits(
     """The κ·d bound in its vehicle-feasible form, as ``(lower, upper)`` on d [m] at knots ``s``.
 
     ``1 − κ d ≥ |κ|/κ_max  ⇔  d ≤ 1/κ − 1/κ_max`` (κ > 0), ``d ≥ 1/κ + 1/κ_max`` (κ < 0): the path keeps a
-    radius of at least ``1/κ_max``; ``∓inf`` where the reference is straight. Written so, it stays finite for
+    radius of at least ``1/κ_max`` (``κ_max``: :attr:`~planner.problem.Vehicle.curvature_limit`, for a car
+    the path its rear axle drives); ``∓inf`` where the reference is straight. Written so, it stays finite for
     any ``κ_max > 0`` (the quotient form overflowed for a tiny one). Beyond the lane (a vehicle that cannot
     turn that tightly) the knot is blocked whether the bound is a metre outside or 10³⁰⁰ m: it is kept
     within ``BEYOND_LANE`` of the edge, a number the lateral QP can still take as a bound.
@@ -205,7 +217,7 @@ def _turning_limits(
     kappa = ref.kappa_at(s)
     curved = np.abs(kappa) > 1e-9
     radius = 1.0 / np.where(curved, kappa, 1.0)
-    limit = np.where(curved, radius - np.sign(kappa) / vehicle.max_curvature, 0.0)
+    limit = np.where(curved, radius - np.sign(kappa) / vehicle.curvature_limit, 0.0)
     lane_left = widths_at(lane.left_width, ref, s, field_name="lane.left_width")
     lane_right = widths_at(lane.right_width, ref, s, field_name="lane.right_width")
     limit = np.clip(limit, -lane_right - BEYOND_LANE, lane_left + BEYOND_LANE)

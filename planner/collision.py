@@ -5,8 +5,10 @@
   ``length × width`` rectangle centred on the trajectory point and turned by its heading.
 * Frenet boxes, for fast decisions over many candidates: every obstacle outline, densified, is mapped
   by TransF-κ, and its ``[s_min, s_max] × [d_min, d_max]`` box is what candidates and lateral bounds
-  are checked against. A vehicle at ``(s, d)`` with heading error ``θ`` to the reference covers
-  ``|Δs| ≤ L/2·cos θ + W/2·|sin θ|`` and ``|Δd| ≤ L/2·|sin θ| + W/2·cos θ`` around it.
+  are checked against. A vehicle planned at ``(s, d)`` with heading error ``θ`` to the reference covers
+  the :class:`Extent` of :func:`footprint_extent` around it: ``|Δs| ≤ L/2·cos θ + W/2·|sin θ|`` and
+  ``|Δd| ≤ L/2·|sin θ| + W/2·cos θ`` for the point model, shifted forwards along the heading by the
+  rear axle's offset for a car (planned at its rear axle).
 
 A dynamic obstacle whose predicted states move less than :data:`STATIC_MOTION` over the horizon is
 treated as static (a parked car given as a prediction); the others are left to the speed profile.
@@ -170,39 +172,67 @@ def frenet_boxes(
     )
 
 
-def vehicle_extent(
-    heading_error: FloatArray, vehicle: Vehicle, margin: float
-) -> tuple[FloatArray, FloatArray]:
-    """Half-extents ``(along s, along d)`` [m] of the footprint turned by ``heading_error`` [rad]."""
-    c, s = np.abs(np.cos(heading_error)), np.abs(np.sin(heading_error))
-    half_l, half_w = 0.5 * vehicle.length, 0.5 * vehicle.width
-    return half_l * c + half_w * s + margin, half_l * s + half_w * c + margin
+@dataclass(frozen=True)
+class Extent:
+    """How far the footprint reaches from the planned point [m], along the reference behind (``back``)
+    and ahead (``front``), across it to the right and left; arrays of one shape (or floats)."""
+
+    back: FloatArray
+    front: FloatArray
+    right: FloatArray
+    left: FloatArray
+
+    def column(self) -> Extent:
+        """The extent with a trailing axis, to broadcast against a row of obstacles."""
+        return Extent(*(np.asarray(a)[..., None] for a in (self.back, self.front, self.right, self.left)))
 
 
-def box_hits(
-    boxes: FrenetBoxes, s: FloatArray, d: FloatArray, half_s: FloatArray, half_d: FloatArray
-) -> NDArray[np.bool_]:
+def footprint_extent(heading_error: FloatArray, vehicle: Vehicle, margin: float) -> Extent:
+    """The extent of the footprint turned by ``heading_error`` θ [rad] (|θ| < π/2) from the planned
+    point, with ``margin`` [m] around it.
+
+    The footprint spans ``[−b, f]`` along the heading from the planned point and ``±W/2`` across it, with
+    ``b = L/2 − l_r`` (:attr:`~planner.problem.Vehicle.rear_extent`) and ``f = L/2 + l_r``
+    (:attr:`~planner.problem.Vehicle.front_extent`; ``b = f = L/2`` for the point model, a car's
+    rear axle ``l_r`` behind the centre). Turned by θ, its corners ``(u, v)`` lie at
+    ``Δs = u cos θ − v sin θ`` and ``Δd = u sin θ + v cos θ``::
+
+        back  = b cos θ + W/2 |sin θ|              front = f cos θ + W/2 |sin θ|
+        right = max(b sin θ, −f sin θ) + W/2 cos θ  left  = max(f sin θ, −b sin θ) + W/2 cos θ
+
+    (the point model's ``L/2 cos θ + W/2 |sin θ|`` and ``L/2 |sin θ| + W/2 cos θ`` either way).
+    """
+    sine = np.sin(heading_error)
+    c, s = np.abs(np.cos(heading_error)), np.abs(sine)
+    back, front, half_w = vehicle.rear_extent, vehicle.front_extent, 0.5 * vehicle.width
+    return Extent(
+        back=back * c + half_w * s + margin,
+        front=front * c + half_w * s + margin,
+        right=np.maximum(back * sine, -front * sine) + half_w * c + margin,
+        left=np.maximum(front * sine, -back * sine) + half_w * c + margin,
+    )
+
+
+def box_hits(boxes: FrenetBoxes, s: FloatArray, d: FloatArray, extent: Extent) -> NDArray[np.bool_]:
     """Whether the footprint box at each point overlaps any obstacle box; shape of ``s``."""
     if boxes.count == 0:
         return np.zeros(np.shape(s), dtype=bool)
     s_, d_ = np.asarray(s)[..., None], np.asarray(d)[..., None]
-    hs, hd = np.asarray(half_s)[..., None], np.asarray(half_d)[..., None]
-    hit = boxes_overlap(s_, d_, hs, hd, boxes.s_min, boxes.s_max, boxes.d_min, boxes.d_max)
+    hit = boxes_overlap(s_, d_, extent.column(), boxes.s_min, boxes.s_max, boxes.d_min, boxes.d_max)
     return np.asarray(hit.any(axis=-1))
 
 
 def boxes_overlap(
     s: FloatArray,
     d: FloatArray,
-    half_s: FloatArray,
-    half_d: FloatArray,
+    extent: Extent,
     s_min: FloatArray,
     s_max: FloatArray,
     d_min: FloatArray,
     d_max: FloatArray,
 ) -> NDArray[np.bool_]:
-    """Whether footprint boxes ``[s ± half_s] × [d ± half_d]`` overlap obstacle boxes
+    """Whether footprint boxes ``[s − back, s + front] × [d − right, d + left]`` overlap obstacle boxes
     ``[s_min, s_max] × [d_min, d_max]`` [m] (touching counts), elementwise over the broadcast shapes."""
-    hit = (s + half_s >= s_min) & (s - half_s <= s_max)
-    hit &= (d + half_d >= d_min) & (d - half_d <= d_max)
+    hit = (s + extent.front >= s_min) & (s - extent.back <= s_max)
+    hit &= (d + extent.left >= d_min) & (d - extent.right <= d_max)
     return np.asarray(hit)

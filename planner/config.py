@@ -85,6 +85,8 @@ class SpeedConfig:
     #: the headway kept to the obstacles ahead: the gap behind is the follower's to keep, ours is not to
     #: brake into it, and the two headways together must fit between a leader and a follower.
     follower_headway: float = 0.5
+    #: share of a car's ``max_steering_rate`` the speed limit along the path plans with [-]
+    steering_rate_share: float = 0.9
     #: SQP iterations (QPs solved) of one speed profile
     sqp_iterations: int = 2
     #: the SQP has converged once the linearised speed limit agrees with the limit within this, wherever

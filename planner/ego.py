@@ -12,6 +12,7 @@ import numpy as np
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.errors import InvalidInputError
 from planner.frenet import to_frenet
+from planner.kinematics import lateral_curvature, planned_ego
 from planner.problem import Ego, Lane, PlanningProblem
 from planner.reference import ReferenceLine, widths_at
 
@@ -36,16 +37,19 @@ class EgoFrenet:
 def start_state(
     ref: ReferenceLine, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG
 ) -> EgoFrenet:
-    """The ego's Frenet state on ``ref``, checked to be on the road (:func:`check_ego_on_road`).
+    """The Frenet state on ``ref`` of the ego's planned point (:func:`planner.kinematics.planned_ego`:
+    the centre, a car's rear axle), checked to be on the road (:func:`check_ego_on_road`).
 
     An ego without a curvature is taken to follow the road's, within what it can drive at its speed
-    ``v``: ``limit_margin · min(κ_max, a_lat,max / v²)`` [1/m] (``v`` at least
-    ``min_curvature_speed``), the margin the speed profile plans the lateral acceleration with.
+    ``v``: ``limit_margin · min(κ_max, κ_lat)`` [1/m] with ``κ_lat`` the curvature at the lateral
+    acceleration limit (:func:`planner.kinematics.lateral_curvature` of ``a_lat,max / v²``; ``v`` at
+    least ``min_curvature_speed``), the margin the speed profile plans the lateral acceleration with.
     """
     vehicle, ego = problem.vehicle, problem.ego
     speed = max(ego.speed, config.min_curvature_speed)
-    reachable = min(vehicle.max_curvature, vehicle.max_lateral_acceleration / speed**2)
-    start = ego_frenet(ref, ego, max_curvature=config.limit_margin * reachable)
+    lateral = float(lateral_curvature(vehicle.max_lateral_acceleration / speed**2, vehicle))
+    reachable = min(vehicle.curvature_limit, lateral)
+    start = ego_frenet(ref, planned_ego(ego, vehicle), max_curvature=config.limit_margin * reachable)
     check_ego_on_road(ref, problem.lane, start)
     return start
 

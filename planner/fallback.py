@@ -73,7 +73,8 @@ def fallback(
     hold = held_offset(ref, knots(start, float(candidate.s[-1]), config.lateral), start.d)
     tried: list[tuple[Trajectory, list[Violation]]] = []
     for option in _distinct(path, candidate, hold):
-        traj = braking(option, problem, steps, dt, config.speed).sample(option, ref, options.dt)
+        profile = braking(option, problem, steps, dt, config.speed)
+        traj = profile.sample(option, options.dt, ref, problem.vehicle)
         bad = trajectory_violations(ref, problem, traj, static)
         tried.append((traj, bad))
         if not bad:
@@ -92,7 +93,7 @@ def fallback(
     others.append(("keeping the speed", braking(path, problem, steps, dt, config.speed, keep_speed=True)))
     weighed: list[tuple[str, Profile | None, Trajectory, list[Violation]]] = []
     for label, profile in others:
-        alt = profile.sample(path, ref, options.dt)
+        alt = profile.sample(path, options.dt, ref, problem.vehicle)
         alt_bad = trajectory_violations(ref, problem, alt, static)
         weighed.append((label, profile, alt, alt_bad))
         if not alt_bad:

@@ -1,8 +1,11 @@
 """The lateral stage: the chosen candidate's offsets smoothed into a drivable path by the lateral QP.
 
-At knots ``s_i`` [m] (``knot_spacing`` apart, at most ``max_knots``) from the ego to the candidate's end,
+The path is the planned point's (:class:`planner.problem.Vehicle`): the vehicle's centre, or the rear
+axle of a car, whose curvature limit and κ·d bound then apply to the path the rear axle drives and whose
+footprint the bounds place from the rear axle along its heading. At knots ``s_i`` [m] (``knot_spacing``
+apart, at most ``max_knots``) from the ego to the candidate's end,
 the lateral bounds (:func:`planner.bounds.lateral_bounds`, obstacles passed on the candidate's side) are
-cut before the first block, held beyond the reach of the vehicle's centre and opened to the ego's
+cut before the first block, held beyond the reach of the planned point and opened to the ego's
 offset near the start; the piecewise-jerk QP (:mod:`solvers.lateral_qp`) then tracks the candidate
 within them, its ``d″`` bounded so that the path's curvature keeps :func:`curvature_allowance`.
 
@@ -19,9 +22,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.bounds import LateralBounds, lateral_bounds, pass_left
-from planner.collision import FrenetBoxes, box_hits, vehicle_extent
+from planner.collision import FrenetBoxes, box_hits, footprint_extent
 from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
 from planner.ego import EgoFrenet
+from planner.kinematics import lateral_curvature
 from planner.lane import lane_bounds
 from planner.problem import PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
@@ -55,16 +59,16 @@ def smoothed_slope(d: FloatArray, s: FloatArray, window: float) -> FloatArray:
 def curvature_allowance(
     s: FloatArray, start: EgoFrenet, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG
 ) -> FloatArray:
-    """Largest path curvature [1/m] at knots ``s`` [m]: ``curvature_share · κ_max``, and
-    ``limit_margin · a_lat,max / v²`` for the speed ``v`` the vehicle can at best have slowed to there
-    (braking at half its deceleration from ``v₀``), so that the speed profile can keep the
-    lateral-acceleration limit."""
+    """Largest path curvature [1/m] at knots ``s`` [m]: ``curvature_share · κ_max``, and the curvature
+    at ``limit_margin · a_lat,max`` (:func:`planner.kinematics.lateral_curvature`: ``a/v²`` for the point
+    model) for the speed ``v`` the vehicle can at best have slowed to there (braking at half its
+    deceleration from ``v₀``), so that the speed profile can keep the lateral-acceleration limit."""
     v = problem.vehicle
     travelled = np.maximum(s - start.s, 0.0)
     v_sq = np.maximum(problem.ego.speed**2 - v.max_deceleration * travelled, 1.0)
     return np.minimum(
-        config.lateral.curvature_share * v.max_curvature,
-        config.limit_margin * v.max_lateral_acceleration / v_sq,
+        config.lateral.curvature_share * v.curvature_limit,
+        lateral_curvature(config.limit_margin * v.max_lateral_acceleration / v_sq, v),
     )
 
 
@@ -183,16 +187,16 @@ def _attempt(
         heading_error=smoothed_slope(d_ref, at, config.lateral.heading_window),
         lane_margin=lane_margin,
     )
-    # The vehicle's centre never gets beyond this: the speed stage stops its front stop_gap before the
+    # The planned point never gets beyond this: the speed stage stops the front stop_gap before the
     # reference's end.
-    reach = ref.length - 0.5 * vehicle.length - config.stop_gap
+    reach = ref.length - vehicle.front_extent - config.stop_gap
     # a lane that runs out (narrower than the vehicle) at the reference's end is its end, not a block
     road_end = bounds.blocked is not None and at[bounds.blocked] >= reach
     bounds, d_ref = _qp_bounds(bounds, d_ref, start, reach, vehicle.length)
     allowance = curvature_allowance(bounds.s, start, problem, config)
     qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
     if not qp.info.usable:  # too fast for the road: keep at least the vehicle's limit
-        allowance = np.full(bounds.s.shape, config.lateral.retry_curvature_share * vehicle.max_curvature)
+        allowance = np.full(bounds.s.shape, config.lateral.retry_curvature_share * vehicle.curvature_limit)
         qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
     return _Attempt(bounds, d_ref, bool(road_end), qp)
 
@@ -286,8 +290,8 @@ def hold_path(
     """
     path = held_offset(ref, bounds.s, start.d)
     zero = np.zeros_like(bounds.s)
-    half_s, half_d = vehicle_extent(zero, problem.vehicle, problem.options.lateral_margin)
-    met = np.flatnonzero(box_hits(boxes, bounds.s, path.d, half_s, half_d))
+    extent = footprint_extent(zero, problem.vehicle, problem.options.lateral_margin)
+    met = np.flatnonzero(box_hits(boxes, bounds.s, path.d, extent))
     if met.size and met[0] < blocked:
         return LateralPlan(path, info, bounds, int(met[0]), False, held=True, obstacle_on_hold=True)
     return LateralPlan(path, info, bounds, blocked, road_end, held=True)

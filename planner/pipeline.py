@@ -105,11 +105,11 @@ def _trajectory(
     every check, with a note saying so."""
     dt = problem.options.dt
     profile = speed.profile
-    traj = profile.sample(path, ref, dt)
+    traj = profile.sample(path, dt, ref, problem.vehicle)
     bad = trajectory_violations(ref, problem, traj, static)
     if bad and profile.kind is not ProfileKind.OPTIMISED:
         planned = Profile.optimised(speed.solved)
-        kept = planned.sample(path, ref, dt)
+        kept = planned.sample(path, dt, ref, problem.vehicle)
         if not trajectory_violations(ref, problem, kept, static):
             note = (
                 f" (up to {speed.solved.position_violation:.2f} m past a stop or an obstacle's headway:"

@@ -2,7 +2,8 @@
 
 The HTTP layer (`app/`) validates a request and converts it into a :class:`PlanningProblem`; the
 planner never sees JSON. Units: metres [m], seconds [s], radians [rad], metres per second [m/s].
-A trajectory point is the vehicle's geometric centre; ``heading`` is counter-clockwise from +x.
+A trajectory point is the vehicle's geometric centre; ``heading`` is counter-clockwise from +x. A
+:class:`Vehicle` with a ``wheelbase`` is a car, planned at its rear axle (see :class:`Vehicle`).
 
 Every dataclass here checks its fields when it is built (:class:`Ego`, :class:`Lane`,
 :class:`Vehicle`, :class:`Options`), and a :class:`PlanningProblem` checks its obstacles and that
@@ -89,6 +90,11 @@ class Lane:
 class Ego:
     """The vehicle's current state: centre position [m], heading [rad], speed [m/s], acceleration
     [m/s²] and, if known, path curvature [1/m].
+
+    For the point model (a :class:`Vehicle` without a wheelbase) heading, speed, acceleration and
+    curvature are the centre's path's; for a car the centre is still the footprint's, and heading is
+    the body's yaw, speed and acceleration the rear axle's, curvature the rear axle's path's
+    (``tan δ / wheelbase``).
 
     Every field must be finite (``curvature`` may be ``None``). ``speed`` is at most
     :data:`MAX_EGO_SPEED`; a speed just below zero, down to ``-STANDSTILL_TOLERANCE``, is a standstill
@@ -211,16 +217,31 @@ def _width(value: Any, where: str) -> float | FloatArray:
 
 @dataclass(frozen=True)
 class Vehicle:
-    """Vehicle footprint [m] and limits: speed [m/s], accelerations [m/s²], curvature [1/m].
+    """Vehicle footprint [m] and limits: speed [m/s], accelerations [m/s²], curvature [1/m]; with a
+    ``wheelbase``, a car (a kinematic single-track vehicle) with its steering limits.
 
-    Every field must be positive and finite. The acceleration and curvature limits
+    Every field given must be positive and finite. The acceleration and curvature limits
     (:data:`RECIPROCAL_LIMITS`) must moreover be *normal* floats (at least :data:`SMALLEST_LIMIT`,
     ≈ 2.2·10⁻³⁰⁸): a denormal such as ``5e-324`` is no measurement of a vehicle, it has lost its
     precision, and its reciprocal (a braking distance ``v²/a``, a turning radius ``1/κ``) overflows.
-    Tiny normal limits are accepted: the planner caps the distances they imply. ``length`` and
-    ``width`` are at most :data:`MAX_SIZE`, the accelerations at most :data:`MAX_ACCELERATION`;
+    Tiny normal limits are accepted: the planner caps the distances they imply. ``length``, ``width``
+    and ``wheelbase`` are at most :data:`MAX_SIZE`, the accelerations at most :data:`MAX_ACCELERATION`;
     ``max_speed`` and ``max_curvature`` have no upper bound (a vehicle that turns on the spot has
     an unbounded curvature limit).
+
+    Two models of motion (:attr:`is_car`):
+
+    * **point** (no ``wheelbase``): a vehicle whose footprint's centre does not slip, as a
+      differential-drive robot's: the planned point is the centre, the footprint turns with the
+      tangent of the centre's path, ``curvature`` is the centre path's.
+    * **car** (``wheelbase`` W given, with ``rear_axle_offset`` l_r: how far the rear axle lies behind
+      the footprint's centre, ``0 ≤ l_r ≤ length/2``): a kinematic single-track vehicle. Its rear axle
+      does not slip: it moves along the body's yaw ``ψ``, on a path of curvature ``κ = tan δ / W`` for
+      the steering angle ``δ``; the footprint is the ``length × width`` box centred ``l_r`` ahead of the
+      rear axle along ``ψ``, i.e. it spans ``[−(L/2 − l_r), L/2 + l_r]`` along the yaw from the rear
+      axle (:attr:`rear_extent`, :attr:`front_extent`). The planned point is the rear axle.
+      ``max_steering_angle`` [rad] (``< π/2``; default ``atan(W · max_curvature)``) bounds ``|δ|``,
+      ``max_steering_rate`` [rad/s] (default: no bound) bounds ``|dδ/dt|``.
 
     Raises:
         InvalidInputError: naming the field (``vehicle.max_deceleration``).
@@ -233,10 +254,16 @@ class Vehicle:
     max_deceleration: float = 6.0
     max_lateral_acceleration: float = 3.0
     max_curvature: float = 0.2
+    wheelbase: float | None = None
+    rear_axle_offset: float | None = None
+    max_steering_angle: float | None = None
+    max_steering_rate: float | None = None
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             where = f"vehicle.{f.name}"
+            if f.name in CAR_FIELDS:
+                continue
             value = _number(getattr(self, f.name), where)
             if not value > 0.0:
                 raise InvalidInputError("must be positive", field=where)
@@ -247,6 +274,87 @@ class Vehicle:
                 )
             if value > _VEHICLE_MAXIMA.get(f.name, np.inf):
                 raise InvalidInputError(f"must be at most {_VEHICLE_MAXIMA[f.name]:g}", field=where)
+        self._check_car()
+
+    def _check_car(self) -> None:
+        """The car's fields: all or none of them need a wheelbase, and the rear axle lies under the body."""
+        if self.wheelbase is None:
+            given = [name for name in CAR_FIELDS[1:] if getattr(self, name) is not None]
+            if given:
+                raise InvalidInputError("needs vehicle.wheelbase (a car)", field=f"vehicle.{given[0]}")
+            return
+        wheelbase = _number(self.wheelbase, "vehicle.wheelbase")
+        if not 0.0 < wheelbase <= MAX_SIZE:
+            raise InvalidInputError(f"must be positive and at most {MAX_SIZE:g} m", field="vehicle.wheelbase")
+        if self.rear_axle_offset is None:
+            raise InvalidInputError(
+                "is required with a wheelbase: how far the rear axle lies behind the footprint's centre",
+                field="vehicle.rear_axle_offset",
+            )
+        offset = _number(self.rear_axle_offset, "vehicle.rear_axle_offset")
+        if not 0.0 <= offset <= 0.5 * self.length:
+            raise InvalidInputError(
+                f"must be between 0 and half the length ({0.5 * self.length:g} m)",
+                field="vehicle.rear_axle_offset",
+            )
+        if self.max_steering_angle is not None:
+            angle = _number(self.max_steering_angle, "vehicle.max_steering_angle")
+            if not 0.0 < angle < 0.5 * math.pi:
+                raise InvalidInputError("must be between 0 and π/2 rad", field="vehicle.max_steering_angle")
+            if math.tan(angle) / wheelbase < SMALLEST_LIMIT:  # the curvature it allows: a reciprocal limit
+                raise InvalidInputError(
+                    f"allows a curvature tan(δ)/wheelbase below {SMALLEST_LIMIT:.3g} 1/m, a denormal",
+                    field="vehicle.max_steering_angle",
+                )
+        if self.max_steering_rate is not None:
+            rate = _number(self.max_steering_rate, "vehicle.max_steering_rate")
+            if not rate >= SMALLEST_LIMIT:
+                raise InvalidInputError("must be positive", field="vehicle.max_steering_rate")
+
+    @property
+    def is_car(self) -> bool:
+        """Whether this is a car (a kinematic single-track vehicle planned at its rear axle)."""
+        return self.wheelbase is not None
+
+    @property
+    def rear_offset(self) -> float:
+        """How far the planned point lies behind the footprint's centre [m]: the rear axle's offset for a
+        car, 0 for the point model (whose planned point is the centre)."""
+        return 0.0 if self.rear_axle_offset is None else float(self.rear_axle_offset)
+
+    @property
+    def front_extent(self) -> float:
+        """How far the footprint reaches ahead of the planned point along the heading [m]:
+        ``L/2 + l_r``."""
+        return 0.5 * self.length + self.rear_offset
+
+    @property
+    def rear_extent(self) -> float:
+        """How far the footprint reaches behind the planned point along the heading [m]:
+        ``L/2 − l_r``."""
+        return 0.5 * self.length - self.rear_offset
+
+    @property
+    def curvature_limit(self) -> float:
+        """The largest path curvature of the planned point [1/m]: ``max_curvature``, and for a car with
+        a ``max_steering_angle`` also ``tan(δ_max)/W``."""
+        if self.wheelbase is None or self.max_steering_angle is None:
+            return self.max_curvature
+        return min(self.max_curvature, math.tan(self.max_steering_angle) / self.wheelbase)
+
+    @property
+    def steering_limit(self) -> float | None:
+        """A car's largest steering angle [rad]: ``max_steering_angle``, default ``atan(W·max_curvature)``;
+        None for the point model."""
+        if self.wheelbase is None:
+            return None
+        if self.max_steering_angle is not None:
+            return self.max_steering_angle
+        return math.atan(self.wheelbase * self.max_curvature)
+
+
+#: the fields of a car (:attr:`Vehicle.is_car`), ``wheelbase`` first; optional, checked together
+CAR_FIELDS = ("wheelbase", "rear_axle_offset", "max_steering_angle", "max_steering_rate")
 
 
 @dataclass(frozen=True)

@@ -6,8 +6,9 @@ For candidate ``i`` with kept points ``(s_j, d_j)`` [m], ``n`` of them, its cost
 
 (the mean squared offset [m²], the summed change of slope ``d′ = Δd/Δs``, the share of the longest
 progress along the reference not reached), with the weights of :class:`planner.config.SelectionConfig`.
-A candidate hits when its footprint box, turned by its heading error and with ``obstacle_margin``
-around it, meets a static obstacle's Frenet box at one of its points.
+A candidate hits when its footprint box (placed from the planned point: the centre, a car's rear axle),
+turned by its heading error and with ``obstacle_margin`` around it, meets a static obstacle's Frenet
+box at one of its points.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.candidates import CandidateSet
-from planner.collision import FrenetBoxes, box_hits, vehicle_extent
+from planner.collision import FrenetBoxes, box_hits, footprint_extent
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.problem import PlanningProblem
 
@@ -46,8 +47,8 @@ def choose_candidate(
     ds = np.diff(cands.s, axis=1)
     dd = np.diff(cands.d, axis=1) / np.where(ds > 0, ds, 1.0)
     heading_error = np.arctan(np.concatenate((dd, dd[:, -1:]), axis=1))
-    half_s, half_d = vehicle_extent(heading_error, problem.vehicle, config.obstacle_margin)
-    hits = box_hits(boxes, cands.s, cands.d, half_s, half_d) & cands.valid
+    extent = footprint_extent(heading_error, problem.vehicle, config.obstacle_margin)
+    hits = box_hits(boxes, cands.s, cands.d, extent) & cands.valid
     free = ~hits.any(axis=1)
     valid = cands.valid
     count = valid.sum(axis=1)

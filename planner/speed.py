@@ -4,8 +4,9 @@ On ``steps`` knots ``t_k = k·Δt`` over the horizon (``Δt = horizon / steps``,
 configured number and about ``horizon / options.dt``) the SQP (:mod:`solvers.speed`) finds the arc
 length ``σ(t)`` [m] along the path within:
 
-* the speed limit ``v ≤ v_lim(σ)`` [m/s]: the target speed (a cap), the vehicle's and the curvature's
-  ``√(limit_margin · a_lat,max / |κ|)``, each the lowest within ``limit_reach`` either side;
+* the speed limit ``v ≤ v_lim(σ)`` [m/s]: the target speed (a cap), the vehicle's, the curvature's
+  ``√(limit_margin · a_lat,max / |κ|)`` (a car's body: :func:`speed_limit`) and a car's steering rate's,
+  each the lowest within ``limit_reach`` either side;
 * a stop ``σ ≤ σ_stop``: ``stop_gap`` before the last free knot of a blocked road, or the front
   ``stop_gap`` before the reference's end, or the path's end;
 * the space-time bounds of the moving obstacles (:mod:`planner.st_bounds`);
@@ -29,11 +30,12 @@ from scipy.ndimage import minimum_filter1d
 
 from planner.config import DEFAULT_CONFIG, PlannerConfig, SpeedConfig
 from planner.ego import EgoFrenet
+from planner.kinematics import steering_rate_speed
 from planner.lateral import LateralPlan
-from planner.problem import Options, PlanningProblem
+from planner.problem import Options, PlanningProblem, Vehicle
 from planner.reference import FloatArray, ReferenceLine
 from planner.st_bounds import SpaceTimeBounds, space_time_bounds
-from planner.trajectory import Path, Trajectory, sample
+from planner.trajectory import Path, Trajectory, body_trajectory, sample
 from solvers.speed_problem import SpeedProblem, SpeedResult, integrate_jerk
 from solvers.speed_profiles import braking_profile, cruise_profile
 from solvers.speed_sqp import SpeedSolver
@@ -68,9 +70,11 @@ class Profile:
         """The SQP's profile."""
         return cls(ProfileKind.OPTIMISED, result.t, result.s, result.v, result.a, result.jerk)
 
-    def sample(self, path: Path, ref: ReferenceLine, dt: float) -> Trajectory:
-        """The trajectory along ``path`` (on ``ref``) every ``dt`` [s]."""
-        return sample(path, self.t, self.s - self.s[0], self.v, self.a, self.jerk, dt, ref)
+    def sample(self, path: Path, dt: float, ref: ReferenceLine, vehicle: Vehicle) -> Trajectory:
+        """The trajectory along ``path`` (the planned point's) every ``dt`` [s], as the answer gives it
+        (:func:`planner.trajectory.body_trajectory`)."""
+        point = sample(path, self.t, self.s - self.s[0], self.v, self.a, self.jerk, dt, ref)
+        return body_trajectory(ref, vehicle, point)
 
 
 @dataclass(frozen=True)
@@ -96,15 +100,30 @@ def target_speed(problem: PlanningProblem) -> float:
 
 
 def speed_limit(path: Path, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> FloatArray:
-    """The speed profile's limit along ``path`` [m/s] at its knots: the target speed, within the vehicle's
-    and the curvature's (the target is a cap: a faster vehicle behind does not raise it)."""
-    a_lat = problem.vehicle.max_lateral_acceleration
+    """The speed profile's limit along ``path`` [m/s] at its knots: the target speed, within the vehicle's,
+    the curvature's and, for a car with a steering-rate limit, the steering rate's (the target is a
+    cap: a faster vehicle behind does not raise it).
+
+    The curvature's: ``v² |κ| √(1 + (l_r κ)²) ≤ limit_margin · a_lat,max``, the lateral acceleration of the
+    body's centre (:func:`planner.kinematics.lateral_acceleration`; ``v² |κ|`` for the point model). The
+    steering rate's: ``|dδ/dt| ≤ steering_rate_share · max_steering_rate``
+    (:func:`planner.kinematics.steering_rate_speed`).
+    """
+    vehicle = problem.vehicle
+    a_lat = vehicle.max_lateral_acceleration
+    curvature = np.maximum(np.abs(path.curvature), 1e-9)
+    if vehicle.rear_offset:
+        curvature = curvature * np.sqrt(1.0 + (vehicle.rear_offset * path.curvature) ** 2)
     with np.errstate(divide="ignore"):
-        lateral = np.sqrt(config.limit_margin * a_lat / np.maximum(np.abs(path.curvature), 1e-9))
+        lateral = np.sqrt(config.limit_margin * a_lat / curvature)
+    limit = np.minimum(target_speed(problem), lateral)
+    steering = steering_rate_speed(path.sigma, path.curvature, vehicle, config.speed.steering_rate_share)
+    if steering is not None:
+        limit = np.minimum(limit, steering)
     # The lowest limit within limit_reach either side: the profile is checked only at its knots.
     step = float(path.sigma[-1] / max(path.sigma.shape[0] - 1, 1))
     size = 2 * max(1, int(np.ceil(config.speed.limit_reach / max(step, 1e-6)))) + 1
-    return np.asarray(minimum_filter1d(np.minimum(target_speed(problem), lateral), size=size, mode="nearest"))
+    return np.asarray(minimum_filter1d(limit, size=size, mode="nearest"))
 
 
 def _speed_problem(
@@ -141,15 +160,15 @@ def _speed_problem(
 
 
 def stop_position(
-    ref: ReferenceLine, path: Path, lateral: LateralPlan, stop_gap: float, length: float
+    ref: ReferenceLine, path: Path, lateral: LateralPlan, stop_gap: float, front_extent: float
 ) -> float:
     """``σ_stop`` [m] along ``path``: ``stop_gap`` before the last free knot when the road is blocked,
-    else the front (half the vehicle ``length`` [m] ahead) ``stop_gap`` before the reference's end, and
-    never past the path's end (it reaches a braking distance beyond the horizon)."""
+    else the front (``front_extent`` [m] ahead of the planned point) ``stop_gap`` before the
+    reference's end, and never past the path's end (it reaches a braking distance beyond the horizon)."""
     if lateral.blocked is not None:  # the path may run on past the block: ≥ 3 knots
         last_free = lateral.bounds.s[max(lateral.blocked - 1, 0)] - stop_gap
         return max(float(np.interp(last_free, path.s, path.sigma, left=0.0)), 0.0)
-    front = 0.5 * length + stop_gap
+    front = front_extent + stop_gap
     if ref.length - front < path.s[-1]:
         return max(float(np.interp(ref.length - front, path.s, path.sigma)), 0.0)
     return path.length
@@ -194,7 +213,7 @@ def speed_stage(
     """The speed profile along the lateral stage's ``path`` (see the module docstring)."""
     cfg = config.speed
     steps, dt = profile_grid(problem.options, cfg)
-    s_stop = stop_position(ref, path, lateral, config.stop_gap, problem.vehicle.length)
+    s_stop = stop_position(ref, path, lateral, config.stop_gap, problem.vehicle.front_extent)
     t = np.arange(steps + 1, dtype=np.float64) * dt
     bounds = space_time_bounds(ref, path, problem, t, start.s, config)
     jerk = cfg.emergency_jerk if lateral.stops else cfg.jerk

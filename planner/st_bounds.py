@@ -2,7 +2,8 @@
 
 A static obstacle (:func:`planner.collision.is_static`) bounds the path: the candidates' choice and the
 lateral bounds keep clear of it. A moving one bounds the speed profile along the chosen path, as the
-arc length ``σ`` [m] of the vehicle's centre along it at the profile's knot times ``t_k`` [s]:
+arc length ``σ`` [m] of the planned point (the vehicle's centre, a car's rear axle) along it at the
+profile's knot times ``t_k`` [s]:
 
 * the obstacles ahead of the ego at the start: ``σ(t_k) ≤ σ_max(t_k)``, short of where the footprint
   (``obstacle_margin`` around it) first meets the obstacle's Frenet box as it was a ``headway`` earlier,
@@ -26,12 +27,13 @@ from scipy.spatial import cKDTree
 from shapely.geometry.base import BaseGeometry
 
 from planner.collision import (
+    Extent,
     box_corners,
     boxes_overlap,
+    footprint_extent,
     is_static,
     obstacle_shape,
     prediction_at,
-    vehicle_extent,
 )
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.frenet import to_frenet
@@ -88,21 +90,20 @@ def space_time_bounds(
 @dataclass(frozen=True)
 class Along:
     """The path as the moving obstacles' bounds see it: its knots in a k-d tree for the near-the-path
-    filter, and the footprint's half-extents on them [m] (aligned with the reference, with
-    ``obstacle_margin`` around it)."""
+    filter, and the footprint's extent on them [m] (from the planned point, aligned with the reference,
+    with ``obstacle_margin`` around it)."""
 
     ref: ReferenceLine
     path: Path
     tree: cKDTree
-    half_s: FloatArray
-    half_d: FloatArray
+    extent: Extent
     knot_spacing: float
 
     @classmethod
     def of(cls, ref: ReferenceLine, path: Path, problem: PlanningProblem, config: PlannerConfig) -> Along:
-        half_s, half_d = vehicle_extent(np.zeros_like(path.s), problem.vehicle, config.obstacle_margin)
+        extent = footprint_extent(np.zeros_like(path.s), problem.vehicle, config.obstacle_margin)
         tree = cKDTree(np.column_stack((path.x, path.y)))
-        return cls(ref, path, tree, half_s, half_d, config.lateral.knot_spacing)
+        return cls(ref, path, tree, extent, config.lateral.knot_spacing)
 
     def near(self, movers: list[DynamicObstacle], t: FloatArray) -> tuple[NDArray[np.intp], list[FloatArray]]:
         """Which of ``movers`` come near the path at some time of ``t`` [s], and every mover's states then
@@ -110,7 +111,8 @@ class Along:
         the largest obstacle, plus a knot spacing (generous: a Frenet box may be larger than the shape it
         bounds)."""
         states = [prediction_at(ob, t) for ob in movers]
-        own = float(np.hypot(self.half_s[0], self.half_d[0]))
+        ext = self.extent
+        own = float(np.hypot(max(ext.front[0], ext.back[0]), max(ext.left[0], ext.right[0])))
         largest = max(float(np.hypot(ob.length, ob.width)) for ob in movers)
         reach = 2.0 * (own + largest) + self.knot_spacing
         dist, _ = self.tree.query(np.concatenate(states)[:, :2], distance_upper_bound=reach)  # one query
@@ -122,7 +124,7 @@ class Along:
         :func:`frenet_extents` (each (K, T)); the answer has shape (K, T, knots)."""
         s_min, s_max, d_min, d_max = (b[..., None] for b in boxes)
         s, d = self.path.s[None, None, :], self.path.d[None, None, :]
-        return boxes_overlap(s, d, self.half_s, self.half_d, s_min, s_max, d_min, d_max)
+        return boxes_overlap(s, d, self.extent, s_min, s_max, d_min, d_max)
 
 
 def space_time_bound(

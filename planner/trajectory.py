@@ -8,15 +8,19 @@ reference and ``Δθ = atan2(d′, 1 − κd)``, the path's heading and curvatur
 
 Its arc length ``σ`` is measured along the Cartesian knots. A trajectory samples the path at times
 ``t`` [s] from a speed profile ``σ(t)`` (exact constant-jerk integration between the profile's knots).
+The path is the planned point's (the vehicle's centre, a car's rear axle); :func:`body_trajectory` turns
+the planned point's trajectory into the answer's (the footprint's centre, a car's yaw and steering).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from planner.frenet import to_cartesian, to_frenet
+from planner.kinematics import body_centre, steering_angle
+from planner.problem import Vehicle
 from planner.reference import FloatArray, ReferenceLine
 
 
@@ -75,7 +79,13 @@ def polyline_path(ref: ReferenceLine, s: FloatArray, d: FloatArray) -> Path:
 @dataclass(frozen=True)
 class Trajectory:
     """Trajectory points of the vehicle's centre: ``t`` [s], ``x, y`` [m], ``heading`` [rad],
-    ``curvature`` [1/m], ``v`` [m/s], ``a`` [m/s²], and ``s, d`` [m] on the reference."""
+    ``curvature`` [1/m], ``v`` [m/s], ``a`` [m/s²], and ``s, d`` [m] of the centre on the reference.
+
+    For the point model heading, curvature, speed and acceleration are the centre's path's. For a car
+    (:attr:`planner.problem.Vehicle.is_car`) heading is the body's yaw ``ψ``, curvature the rear axle's
+    path's ``tan δ / W``, speed and acceleration the rear axle's, and ``steering_angle`` is ``δ`` [rad]
+    (None for the point model).
+    """
 
     t: FloatArray
     x: FloatArray
@@ -86,6 +96,7 @@ class Trajectory:
     a: FloatArray
     s: FloatArray
     d: FloatArray
+    steering_angle: FloatArray | None = None
 
     @property
     def size(self) -> int:
@@ -106,6 +117,20 @@ def _along_heading(path: Path, heading: FloatArray, sig: FloatArray) -> tuple[Fl
     x = h00 * path.x[k] + h10 * h * c0 + h01 * path.x[k + 1] + h11 * h * c1
     y = h00 * path.y[k] + h10 * h * s0 + h01 * path.y[k + 1] + h11 * h * s1
     return x, y
+
+
+def body_trajectory(ref: ReferenceLine, vehicle: Vehicle, point: Trajectory) -> Trajectory:
+    """The trajectory as the answer gives it from the planned point's ``point``: the point model's as is;
+    for a car (``point`` its rear axle's), the footprint's centre ``l_r`` ahead along the yaw, its
+    ``s, d`` by TransF-κ (the rear axle's where ``l_r = 0``) and the steering angle ``atan(W κ)``."""
+    if not vehicle.is_car:
+        return point
+    x, y = body_centre(point.x, point.y, point.heading, vehicle)
+    s, d = point.s, point.d
+    if vehicle.rear_offset:
+        fr = to_frenet(ref, np.column_stack((x, y)))
+        s, d = fr.s, fr.d
+    return replace(point, x=x, y=y, s=s, d=d, steering_angle=steering_angle(point.curvature, vehicle))
 
 
 def sample(

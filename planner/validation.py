@@ -18,7 +18,8 @@ from shapely.geometry.base import BaseGeometry
 
 from planner.collision import box_corners, footprints, prediction_at
 from planner.frenet import to_cartesian, to_frenet
-from planner.problem import DynamicObstacle, PlanningProblem
+from planner.kinematics import lateral_acceleration, planned_point, steering_angle
+from planner.problem import DynamicObstacle, PlanningProblem, Vehicle
 from planner.reference import FloatArray, ReferenceLine, widths_at
 from planner.trajectory import Trajectory
 
@@ -62,9 +63,6 @@ _S_TOL = 1e-6
 _STANDSTILL_STEP = 1e-3
 #: a point's (x, y) may be this far from the position of its reported (s, d) [m]
 _FRENET_TOL = 0.1
-#: the heading may be this far off the direction of a step [rad] (steps longer than
-#: :data:`_DIRECTION_STEP` [m]; a step's chord runs along the heading at its middle)
-_HEADING_TOL, _DIRECTION_STEP = 0.1, 0.01
 #: a step's heading change may differ from its length × the mean reported curvature by this [rad],
 #: plus this share of the change
 _TURN_ABS_TOL, _TURN_REL_TOL = 0.05, 0.1
@@ -107,6 +105,12 @@ class ViolationKind(StrEnum):
     SPEED = "speed"
     #: the vehicle's front passes the reference line's end (beyond where it started)
     ROAD_END = "road_end"
+    #: a car's rear axle does not move along the body's yaw (:func:`car_violations`)
+    REAR_AXLE_SLIPS = "rear_axle_slips"
+    #: a car's ``|steering_angle|`` above its ``max_steering_angle``
+    STEERING_ANGLE = "steering_angle"
+    #: a car's steering rate ``|dδ/dt|`` above its ``max_steering_rate``
+    STEERING_RATE = "steering_rate"
 
 
 #: the kinds that are collisions; the others break a limit without hitting anything by themselves
@@ -122,7 +126,8 @@ class Violation:
         obstacle_id: the obstacle hit (the two ``HITS_*`` kinds), else None.
         t: the first time it happens [s], None where a time means nothing (self-intersection).
         value: the worst value where the message states one (``CURVATURE`` [1/m],
-            ``LATERAL_ACCELERATION`` [m/s²], ``SPEED`` [m/s]), else None.
+            ``LATERAL_ACCELERATION`` [m/s²], ``SPEED`` [m/s], ``REAR_AXLE_SLIPS``, ``STEERING_ANGLE`` [rad],
+            ``STEERING_RATE`` [rad/s]), else None.
     """
 
     kind: ViolationKind
@@ -133,23 +138,27 @@ class Violation:
     @property
     def message(self) -> str:
         """The check in words, as answers report it."""
-        kind = self.kind
-        if kind is ViolationKind.CURVATURE:
-            return f"curvature {self.value:.3f} 1/m above max_curvature"
-        if kind is ViolationKind.LATERAL_ACCELERATION:
-            return f"lateral acceleration {self.value:.2f} m/s² above the limit"
-        if kind is ViolationKind.SPEED:
-            return f"speed {self.value:.2f} m/s above max_speed"
-        if kind is ViolationKind.HITS_OBSTACLE:
-            return f"footprint hits obstacle {self.obstacle_id}"
-        if kind is ViolationKind.HITS_MOVING_OBSTACLE:
-            return f"footprint hits moving obstacle {self.obstacle_id}"
-        return _MESSAGES[kind]
+        template = _TEMPLATES.get(self.kind)
+        if template is None:
+            return _MESSAGES[self.kind]
+        return template.format(value=self.value, obstacle_id=self.obstacle_id)
 
     def __str__(self) -> str:
         return self.message
 
 
+#: the messages of the kinds that state a value or an obstacle
+_TEMPLATES = {
+    ViolationKind.CURVATURE: "curvature {value:.3f} 1/m above max_curvature",
+    ViolationKind.LATERAL_ACCELERATION: "lateral acceleration {value:.2f} m/s² above the limit",
+    ViolationKind.SPEED: "speed {value:.2f} m/s above max_speed",
+    ViolationKind.HITS_OBSTACLE: "footprint hits obstacle {obstacle_id}",
+    ViolationKind.HITS_MOVING_OBSTACLE: "footprint hits moving obstacle {obstacle_id}",
+    ViolationKind.REAR_AXLE_SLIPS: "the rear axle moves {value:.3f} rad off the body's yaw",
+    ViolationKind.STEERING_ANGLE: "steering angle {value:.3f} rad above max_steering_angle",
+    ViolationKind.STEERING_RATE: "steering rate {value:.3f} rad/s above max_steering_rate",
+}
+#: the messages of the others
 _MESSAGES = {
     ViolationKind.START: "does not start at the ego",
     ViolationKind.KAPPA_D: "1 − κ·d ≤ 0 at some point",
@@ -178,14 +187,17 @@ def trajectory_violations(
 ) -> list[Violation]:
     """Every check a returned trajectory must pass, in this order; an empty list when it passes them all.
 
-    Starts at the ego; ``1 − κ·d > 0``; ``|curvature| ≤ max_curvature`` while moving and
-    ``v²·|curvature| ≤ max_lateral_acceleration``; acceleration within the limits; consecutive positions
-    consistent with ``v·dt``; ``s`` never decreasing and strictly increasing while moving; no
-    self-intersection; footprint inside the lane (all four corners by TransF-κ; no further out than the
-    measured start where that is already partly outside) and clear of every static obstacle and of
-    every moving one at its predicted pose at the same time. And the numbers agree with each other
-    (:func:`consistency_violations`), the speed keeps ``max_speed`` and the footprint stays before the
-    reference line's end (:func:`limit_violations`).
+    Starts at the ego; ``1 − κ·d > 0``; ``|curvature| ≤ max_curvature`` (a car's
+    :attr:`~planner.problem.Vehicle.curvature_limit`) while moving and the body's lateral acceleration
+    (:func:`planner.kinematics.lateral_acceleration`, ``v²·|curvature|`` for the point model) at most
+    ``max_lateral_acceleration``; acceleration within the limits; consecutive positions of the planned
+    point (the centre, a car's rear axle) consistent with ``v·dt``; ``s`` never decreasing and strictly
+    increasing while moving; no self-intersection; footprint inside the lane (all four corners by
+    TransF-κ; no further out than the measured start where that is already partly outside) and clear of
+    every static obstacle and of every moving one at its predicted pose at the same time; for a car,
+    its kinematics (:func:`car_violations`).
+    And the numbers agree with each other (:func:`consistency_violations`), the speed keeps ``max_speed``
+    (:func:`speed_violations`) and the front stays before the reference line's end.
     """
     vehicle, ego, t = problem.vehicle, problem.ego, traj.t
     kind = ViolationKind
@@ -198,10 +210,10 @@ def trajectory_violations(
     if np.any(folded):
         out.append(Violation(kind.KAPPA_D, t=_first(t, folded)))
     curv = np.abs(traj.curvature)
-    sharp = moving & (curv > vehicle.max_curvature * (1 + _RATE_TOL) + _CURVATURE_TOL)
+    sharp = moving & (curv > vehicle.curvature_limit * (1 + _RATE_TOL) + _CURVATURE_TOL)
     if np.any(sharp):
         out.append(Violation(kind.CURVATURE, t=_first(t, sharp), value=float(curv[moving].max())))
-    lat = traj.v**2 * curv
+    lat = lateral_acceleration(traj.v, curv, vehicle)
     sliding = lat > vehicle.max_lateral_acceleration * (1 + _RATE_TOL) + _LATERAL_TOL
     if np.any(sliding):
         out.append(Violation(kind.LATERAL_ACCELERATION, t=_first(t, sliding), value=float(lat.max())))
@@ -211,7 +223,8 @@ def trajectory_violations(
     if np.any(outside_limits):
         out.append(Violation(kind.ACCELERATION, t=_first(t, outside_limits)))
     dt = np.diff(t)
-    step = np.hypot(np.diff(traj.x), np.diff(traj.y))
+    px, py = planned_point(traj.x, traj.y, traj.heading, vehicle)
+    step = np.hypot(np.diff(px), np.diff(py))
     # the chord of an arc of length v·dt that turns by Δθ: v·dt·sin(Δθ/2)/(Δθ/2)
     expected = 0.5 * (traj.v[:-1] + traj.v[1:]) * dt * np.sinc(0.5 * np.diff(traj.heading) / np.pi)
     inconsistent = np.abs(step - expected) > _STEP_ABS_TOL + _STEP_REL_TOL * expected
@@ -243,7 +256,7 @@ def trajectory_violations(
     past_end = beyond > max(float(beyond[0]), 0.0) + _GEOMETRY_TOL
     if np.any(past_end):
         out.append(Violation(kind.ROAD_END, t=_first(t, past_end)))
-    out += consistency_violations(ref, traj) + speed_violations(problem, traj)
+    out += consistency_violations(ref, vehicle, traj) + speed_violations(problem, traj)
     for ob_id, shape in static:
         hits = shapely.intersects(prints, shape)
         if np.any(hits):
@@ -257,13 +270,53 @@ def trajectory_violations(
             hits = shapely.intersects(prints, boxes)
             if np.any(hits):
                 out.append(Violation(kind.HITS_MOVING_OBSTACLE, obstacle_id=ob.id, t=_first(t, hits)))
+    if vehicle.is_car:
+        out += car_violations(vehicle, traj)
     return out
 
 
-def consistency_violations(ref: ReferenceLine, traj: Trajectory) -> list[Violation]:
+#: a car's rear axle may move this far off its yaw [rad]: far below the slip of its centre in a turn
+#: (``atan(l_r κ)``, 10–20° for a car's), above the chord-vs-heading error of a path sampled between
+#: knots half a metre apart (``κΔ/2``, 4° at 0.3 1/m)
+_SLIP_TOL = 0.1
+#: steps shorter than this [m] carry no usable direction
+_DIRECTION_STEP = 0.01
+#: absolute tolerances on a car's steering angle [rad] and rate [rad/s]
+_STEERING_TOL, _STEERING_RATE_TOL = 1e-4, 1e-3
+
+
+def car_violations(vehicle: Vehicle, traj: Trajectory) -> list[Violation]:
+    """A car's steering along ``traj`` (its points the footprint's centre, ``heading`` the body's yaw,
+    ``curvature`` the rear axle's path's, ``steering_angle`` δ): ``|δ| ≤ max_steering_angle``;
+    ``|Δδ/Δt| ≤ max_steering_rate`` between consecutive points (when given). In this order; [] for the
+    point model. That the rear axle does not slip is :func:`consistency_violations`' heading check."""
+    if not vehicle.is_car:
+        return []
+    kind, t = ViolationKind, traj.t
+    out: list[Violation] = []
+    delta = traj.steering_angle
+    if delta is None:
+        delta = steering_angle(traj.curvature, vehicle)
+    limit = vehicle.steering_limit
+    if limit is not None:
+        beyond = np.abs(delta) > limit * (1 + _RATE_TOL) + _STEERING_TOL
+        if np.any(beyond):
+            worst = float(np.abs(delta).max())
+            out.append(Violation(kind.STEERING_ANGLE, t=_first(t, beyond), value=worst))
+    rate_limit = vehicle.max_steering_rate
+    if rate_limit is not None and t.shape[0] > 1:
+        rate = np.abs(np.diff(delta)) / np.maximum(np.diff(t), 1e-12)
+        fast = rate > rate_limit * (1 + _RATE_TOL) + _STEERING_RATE_TOL
+        if np.any(fast):
+            out.append(Violation(kind.STEERING_RATE, t=_first(t, fast), value=float(rate.max())))
+    return out
+
+
+def consistency_violations(ref: ReferenceLine, vehicle: Vehicle, traj: Trajectory) -> list[Violation]:
     """Whether the trajectory's numbers agree with each other: each point's ``(x, y)`` is the position of
-    its ``(s, d)`` (TransF-κ's inverse); over each step longer than :data:`_DIRECTION_STEP`, the
-    chord's direction is the heading at the step's middle and the heading's change is the step's
+    its ``(s, d)`` (TransF-κ's inverse); over each step of the planned point (the centre, a car's rear
+    axle) longer than :data:`_DIRECTION_STEP`, the chord's direction is the heading at the step's middle
+    (for a car: its rear axle does not slip, ``REAR_AXLE_SLIPS``) and the heading's change is the step's
     length times the mean reported curvature (both within their tolerances)."""
     kind, t = ViolationKind, traj.t
     out: list[Violation] = []
@@ -271,15 +324,19 @@ def consistency_violations(ref: ReferenceLine, traj: Trajectory) -> list[Violati
     apart = np.hypot(xy[:, 0] - traj.x, xy[:, 1] - traj.y) > _FRENET_TOL
     if np.any(apart):
         out.append(Violation(kind.FRENET, t=_first(t, apart)))
-    dx, dy = np.diff(traj.x), np.diff(traj.y)
+    px, py = planned_point(traj.x, traj.y, traj.heading, vehicle)
+    dx, dy = np.diff(px), np.diff(py)
     step = np.hypot(dx, dy)
     moves = step > _DIRECTION_STEP
     turn = np.diff(traj.heading)  # continuous, not wrapped
     chord = traj.heading[:-1] + 0.5 * turn
     off = np.abs(np.angle(np.exp(1j * (np.arctan2(dy, dx) - chord))))
-    skewed = moves & (off > _HEADING_TOL)
+    skewed = moves & (off > _SLIP_TOL)
     if np.any(skewed):
-        out.append(Violation(kind.HEADING, t=_first(t, skewed)))
+        if vehicle.is_car:
+            out.append(Violation(kind.REAR_AXLE_SLIPS, t=_first(t, skewed), value=float(off[skewed].max())))
+        else:
+            out.append(Violation(kind.HEADING, t=_first(t, skewed)))
     expected = 0.5 * (traj.curvature[:-1] + traj.curvature[1:]) * step
     bent = moves & (np.abs(turn - expected) > _TURN_ABS_TOL + _TURN_REL_TOL * np.abs(turn))
     if np.any(bent):

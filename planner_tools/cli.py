@@ -10,10 +10,14 @@
   along the road, a metrics table; ``compare.gif``), with ``metrics.json`` for both and a run file
   per generator (``run_naive.json.gz``, ``run_transf_kappa.json.gz``).
 * ``kappa-planner demo --out DIR`` is ``compare`` on the built-in demo U-turn.
+* ``--wheelbase W --rear-axle-offset L_R`` (and ``--max-steering-angle``, ``--max-steering-rate``) make
+  the vehicle of ``simulate``, ``compare`` and ``demo`` a car: planned and driven at its rear axle.
 * ``kappa-planner commonroad SCENARIO [--out DIR]`` converts a CommonRoad scenario
   (:mod:`planner_tools.commonroad`: XML, a request JSON or a reduced scenario JSON) and drives it to the
   goal of its planning problem; ``--out`` adds ``request.json``, ``conversion.json`` and the files of
-  ``simulate``.
+  ``simulate``; ``--solution OUT.xml`` writes the driven trajectory as a CommonRoad solution (XML
+  scenarios); ``--vehicle car|point`` drives CommonRoad's vehicle type 2 car (an XML's own) or the
+  same footprint as the point model.
 
 The request is read by :func:`planner_tools.io.problem_from_json` (no pydantic, no ``app`` import: the
 command line is a client of the planner like the HTTP layer). Drawing (:mod:`planner_tools.render`) and
@@ -32,9 +36,9 @@ from pathlib import Path
 from typing import Any
 
 from planner.errors import PlannerError
-from planner.problem import Generator, PlanningProblem
+from planner.problem import CAR_FIELDS, Generator, PlanningProblem
 from planner.roads import demo_problem
-from planner_tools.commonroad import CommonRoadError, load
+from planner_tools.commonroad import CommonRoadError, car_vehicle, load, point_vehicle, write_solution
 from planner_tools.extras import COMMONROAD, TOOLS, MissingExtraError
 from planner_tools.io import problem_from_json
 from planner_tools.records import run_record, summary, write_json, write_steps_csv
@@ -64,9 +68,22 @@ def _quiet(args: argparse.Namespace) -> bool:
     return bool(args.quiet) or not sys.stderr.isatty()
 
 
+def _car(problem: PlanningProblem, args: argparse.Namespace) -> PlanningProblem:
+    """``problem`` with the car of ``--wheelbase``, ``--rear-axle-offset``, … (the vehicle as is
+    without ``--wheelbase``)."""
+    fields: dict[str, Any] = {name: getattr(args, name, None) for name in CAR_FIELDS}
+    if fields["wheelbase"] is None:
+        given = [name for name, value in fields.items() if value is not None]
+        if given:
+            raise PlannerError(f"--{given[0].replace('_', '-')} needs --wheelbase")
+        return problem
+    return replace(problem, vehicle=replace(problem.vehicle, **fields))
+
+
 def _run(problem: PlanningProblem, generator: Generator, args: argparse.Namespace) -> SimResult:
     from tqdm import tqdm
 
+    problem = _car(problem, args)
     problem = replace(problem, options=replace(problem.options, generator=generator))
     model = BicycleModel.for_vehicle(problem.vehicle, centre_midway=args.centre_midway)
     goal = None if args.goal_s is None else Goal(s_min=args.goal_s)
@@ -154,6 +171,12 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def _cmd_commonroad(args: argparse.Namespace) -> int:
     try:
         conv = load(args.scenario, planning_problem_id=args.planning_problem)
+        if args.vehicle != "request":
+            vehicle = conv.request["vehicle"]
+            vehicle = car_vehicle(vehicle) if args.vehicle == "car" else point_vehicle(vehicle)
+            conv = replace(conv, request={**conv.request, "vehicle": vehicle})
+        if args.solution is not None and "scenario_id" not in conv.info:
+            raise CommonRoadError(f"--solution needs a CommonRoad XML scenario, not {args.scenario}")
     except (CommonRoadError, OSError, ValueError) as exc:
         raise PlannerError(str(exc)) from exc
     problem = problem_from_json(conv.request)
@@ -174,6 +197,12 @@ def _cmd_commonroad(args: argparse.Namespace) -> int:
             f"wrote request.json, conversion.json, key frames, {'' if args.no_gif else 'sim.gif, '}"
             f"steps.csv, metrics.json, run.json.gz to {out}"
         )
+    if args.solution is not None:
+        try:
+            written = write_solution(args.solution, conv, result.motion)
+        except CommonRoadError as exc:
+            raise PlannerError(str(exc)) from exc
+        print(f"wrote the driven trajectory as a CommonRoad solution (KS, vehicle type 2) to {written}")
     return 0
 
 
@@ -221,9 +250,24 @@ def _add_commonroad(sub: Any) -> None:
     p.add_argument("--frame-every", type=_positive, default=2.0, help="key frame period [s]")
     _add_gif(p)
     p.add_argument(
+        "--vehicle",
+        choices=("request", "car", "point"),
+        default="request",
+        help="the request's vehicle (XML: CommonRoad's vehicle type 2 car, BMW 320i), that car, or the "
+        "same footprint as the point model (no wheelbase)",
+    )
+    p.add_argument(
+        "--solution",
+        type=Path,
+        default=None,
+        help="write the driven trajectory as a CommonRoad solution file (XML scenarios: kinematic "
+        "single-track model, vehicle type 2)",
+    )
+    p.add_argument(
         "--centre-midway",
         action="store_true",
-        help="a car referenced midway between its axles (its body yaws by the slip angle in turns)",
+        help="the point model driven by a car referenced midway between its axles (its body yaws by the "
+        "slip angle in turns)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_commonroad)
@@ -243,10 +287,20 @@ def _parser() -> argparse.ArgumentParser:
     common.add_argument(
         "--centre-midway",
         action="store_true",
-        help="a car referenced midway between its axles: its body yaws against the path by the slip "
-        "angle, which the planner's footprint does not model (default: no slip at the centre, the "
-        "vehicle the planner's contract describes)",
+        help="the point model driven by a car referenced midway between its axles: its body yaws against "
+        "the path by the slip angle, which the point model's footprint does not model (default: no slip "
+        "at the centre, the vehicle the point model describes; plan a car with --wheelbase instead)",
     )
+    car = common.add_argument_group("a car (kinematic single-track: planned and driven at its rear axle)")
+    car.add_argument("--wheelbase", type=_positive, default=None, help="the car's wheelbase [m]")
+    car.add_argument(
+        "--rear-axle-offset",
+        type=float,
+        default=None,
+        help="how far its rear axle lies behind the footprint's centre [m] (with --wheelbase)",
+    )
+    car.add_argument("--max-steering-angle", type=_positive, default=None, help="[rad] (with --wheelbase)")
+    car.add_argument("--max-steering-rate", type=_positive, default=None, help="[rad/s] (with --wheelbase)")
     common.add_argument("--quiet", action="store_true", help="no progress bar")
 
     sim = sub.add_parser("simulate", parents=[common], help="simulate one run of a planning request")

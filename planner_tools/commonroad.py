@@ -19,13 +19,18 @@ written in the service's request contract (:class:`app.models.planning.PlanningR
   boxes with a ``prediction`` of their recorded states (t relative to the ego's initial time step,
   box centres — CommonRoad states may sit off the centre by ``origin_x_shift``); a set-based
   prediction becomes a constant-velocity one over its time span.
-* **ego, vehicle, options** — the planning problem's initial state; the vehicle and options of the
-  shared requests (``target_speed``: the larger of the ego's speed, the middle of the goal's speed
-  interval and :data:`MIN_TARGET_SPEED`).
+* **ego, vehicle, options** — the planning problem's initial state; the options of the shared requests
+  (``target_speed``: the larger of the ego's speed, the middle of the goal's speed interval and
+  :data:`MIN_TARGET_SPEED`) and their vehicle's limits, as the car of CommonRoad's vehicle type
+  :data:`VEHICLE_TYPE` (:func:`vehicle_type_car`: footprint, wheelbase, rear axle, steering limits).
 * **goal** (not part of the request) — ``s_min``, the arc length of the goal region's centroid on the
   reference (at most the reference's length less a vehicle length), for :class:`planner_tools.sim.Goal`;
   ``None`` for a goal given by time only (the simulator then drives to the reference's end). The
   goal's time window is recorded but not enforced.
+
+The driven motion of a run becomes a CommonRoad solution (:func:`write_solution`: commonroad-io's
+solution writer, kinematic single-track model, vehicle type :data:`VEHICLE_TYPE`), whose transitions
+commonroad-drivability-checker's feasibility checker judges (:func:`feasible_transitions`).
 
 commonroad-io is imported lazily (the optional extra ``commonroad``): everything that needs no
 scenario file — :func:`resample`, :func:`smooth`, :func:`boundary_widths`, :func:`prediction_rows`,
@@ -52,6 +57,7 @@ import shapely
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import gaussian_filter1d
 
+from planner.problem import CAR_FIELDS
 from planner.reference import FloatArray
 from planner_tools.extras import COMMONROAD, MissingExtraError
 
@@ -83,6 +89,8 @@ VEHICLE: dict[str, float] = {
     "max_lateral_acceleration": 4.0,
     "max_curvature": 0.3,
 }
+#: CommonRoad's vehicle type of the converted car and of the solutions (2: BMW 320i)
+VEHICLE_TYPE = 2
 #: planning horizon and step of the shared requests [s]
 HORIZON_TIME, DT = 8.0, 0.1
 #: most predicted states per obstacle (the request's limit)
@@ -836,6 +844,7 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
 
     obstacles, n_static, n_dynamic = _obstacles(scenario, t0_step)
     accel = getattr(init, "acceleration", 0.0)
+    vehicle = {**VEHICLE, **vehicle_type_car()}
     request = {
         "reference_line": _points_json(pts),
         "lane": {"left_width": [_r(w) for w in left], "right_width": [_r(w) for w in right]},
@@ -847,7 +856,7 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
             "speed": _r(ego_speed),
             "acceleration": _r(accel if accel is not None else 0.0),
         },
-        "vehicle": dict(VEHICLE),
+        "vehicle": vehicle,
         "options": {
             "horizon_time": HORIZON_TIME,
             "dt": DT,
@@ -856,6 +865,9 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
     }
     info = {
         "source": Path(path).name,
+        "scenario_id": str(scenario.scenario_id),
+        "dt": dt,
+        "initial_time_step": t0_step,
         "planning_problem_id": int(problem.planning_problem_id),
         "route_lanelet_ids": [int(i) for i in route],
         "length_m": _r(ref.length, 2),
@@ -872,6 +884,164 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
         "region": region,
     }
     return Conversion(Path(path).stem, request, goal_out, info)
+
+
+def vehicle_type_car(vehicle_type: int = VEHICLE_TYPE) -> dict[str, float]:
+    """The car of a CommonRoad vehicle type as a request's vehicle fields (commonroad-vehicle-models'
+    parameters, which the feasibility checker uses): footprint ``l × w``, wheelbase ``a + b``, the rear
+    axle ``b`` behind the centre (CommonRoad's position; ``a``, ``b``: centre to the front and rear
+    axles), the steering angle and rate limits. Type 2, the BMW 320i: 4.508 × 1.61 m, wheelbase
+    2.579 m, rear axle 1.423 m behind the centre, ±1.066 rad, ±0.4 rad/s."""
+    _require_commonroad()
+    from vehiclemodels.vehicle_parameters import setup_vehicle_parameters
+
+    p = setup_vehicle_parameters(vehicle_type)
+    return {
+        "length": float(p.l),
+        "width": float(p.w),
+        "wheelbase": float(p.a + p.b),
+        "rear_axle_offset": float(p.b),
+        "max_steering_angle": float(p.steering.max),
+        "max_steering_rate": float(p.steering.v_max),
+    }
+
+
+def point_vehicle(vehicle: dict[str, Any]) -> dict[str, Any]:
+    """A request's vehicle without its car's fields: the same footprint and limits, the point model."""
+    return {k: v for k, v in vehicle.items() if k not in CAR_FIELDS}
+
+
+def car_vehicle(vehicle: dict[str, Any], vehicle_type: int = VEHICLE_TYPE) -> dict[str, Any]:
+    """A request's vehicle made CommonRoad's car of ``vehicle_type`` (:func:`vehicle_type_car`), its other
+    limits kept."""
+    return {**point_vehicle(vehicle), **vehicle_type_car(vehicle_type)}
+
+
+# --------------------------------------------------------------------------------------------------
+# Solutions: the driven motion in CommonRoad's kinematic single-track model
+# --------------------------------------------------------------------------------------------------
+
+
+def driven_states(motion: Any, dt: float, initial_time_step: int = 0) -> list[Any]:
+    """The driven motion (:class:`planner_tools.sim.Motion`) every ``dt`` [s] as commonroad-io's
+    kinematic single-track states: the footprint's centre, the steering angle, the velocity (a car's
+    rear axle's, as the simulator drives it) and the orientation (the body's yaw), their time steps
+    from ``initial_time_step``.
+
+    Raises:
+        CommonRoadError: when the motion has no sample at some multiple of ``dt`` (its sub-step does
+            not divide ``dt``).
+    """
+    _require_commonroad()
+    from commonroad.scenario.state import KSState
+
+    t = np.asarray(motion.t, dtype=float)
+    wanted = np.arange(0.0, t[-1] + 1e-9, dt)
+    at = np.clip(np.searchsorted(t, wanted), 0, t.size - 1)
+    before = np.clip(at - 1, 0, t.size - 1)
+    at = np.where(np.abs(t[before] - wanted) < np.abs(t[at] - wanted), before, at)
+    if np.any(np.abs(t[at] - wanted) > 1e-6):
+        raise CommonRoadError(f"the driven motion has no sample every {dt} s (its sub-step does not fit)")
+    return [
+        KSState(
+            position=np.array([motion.x[i], motion.y[i]]),
+            steering_angle=float(motion.steering[i]),
+            velocity=float(motion.v[i]),
+            orientation=float(motion.yaw[i]),
+            time_step=initial_time_step + k,
+        )
+        for k, i in enumerate(at.tolist())
+    ]
+
+
+def write_solution(
+    out: str | Path, conv: Conversion, motion: Any, vehicle_type: int = VEHICLE_TYPE
+) -> Path:
+    """Write the driven ``motion`` of the scenario ``conv`` (converted from XML: its ``info`` holds the
+    scenario id, time step and planning problem) as a CommonRoad solution file ``out`` (commonroad-io's
+    :class:`~commonroad.common.solution.CommonRoadSolutionWriter`): the kinematic single-track model of
+    ``vehicle_type``, cost function SM1, the states of :func:`driven_states`.
+
+    Raises:
+        CommonRoadError: for a conversion that did not come from a CommonRoad XML scenario.
+    """
+    _require_commonroad()
+    from commonroad.common.solution import (
+        CommonRoadSolutionWriter,
+        CostFunction,
+        PlanningProblemSolution,
+        Solution,
+        VehicleModel,
+        VehicleType,
+    )
+    from commonroad.scenario.scenario import ScenarioID
+    from commonroad.scenario.trajectory import Trajectory
+
+    info = conv.info
+    if "scenario_id" not in info:
+        raise CommonRoadError(f"{conv.name}: a solution needs the CommonRoad XML of the scenario")
+    states = driven_states(motion, float(info["dt"]), int(info["initial_time_step"]))
+    trajectory = Trajectory(initial_time_step=states[0].time_step, state_list=states)
+    solution = Solution(
+        ScenarioID.from_benchmark_id(str(info["scenario_id"]), "2020a"),
+        [
+            PlanningProblemSolution(
+                planning_problem_id=int(info["planning_problem_id"]),
+                vehicle_model=VehicleModel.KS,
+                vehicle_type=VehicleType(vehicle_type),
+                cost_function=CostFunction.SM1,
+                trajectory=trajectory,
+            )
+        ],
+    )
+    path = Path(out)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with _quiet():
+        CommonRoadSolutionWriter(solution).write_to_file(
+            output_path=str(path.parent), filename=path.name, overwrite=True
+        )
+    return path
+
+
+def _shape_module_of_old() -> None:
+    """Register ``commonroad.geometry.shape`` where commonroad-io has none.
+
+    commonroad-drivability-checker 2025.4 (its newest release) imports ``Rectangle`` from
+    ``commonroad.geometry.shape``, which commonroad-io 2026.1 replaced by
+    ``commonroad.geometry.obstacle_shapes`` (``RectObstacleShape``, the same ``length × width``
+    rectangle). Its feasibility checker only sizes the ego's shape with it, which the check of
+    transitions does not use; the old name is registered as that class so that the checker imports.
+    """
+    import importlib.util
+    import sys
+    import types
+
+    if "commonroad.geometry.shape" in sys.modules or importlib.util.find_spec("commonroad.geometry.shape"):
+        return
+    from commonroad.geometry.obstacle_shapes.rect_obstacle_shape import RectObstacleShape
+
+    module = types.ModuleType("commonroad.geometry.shape", "commonroad-io < 2026's shapes (Rectangle only)")
+    module.Rectangle = RectObstacleShape  # type: ignore[attr-defined]
+    sys.modules[module.__name__] = module
+
+
+def feasible_transitions(states: Sequence[Any], dt: float, vehicle_type: int = VEHICLE_TYPE) -> list[bool]:
+    """Per transition between consecutive kinematic single-track ``states``: whether
+    commonroad-drivability-checker's feasibility checker finds inputs within the vehicle type's limits
+    (steering rate and angle, acceleration) that reach the next state within its position and
+    orientation tolerances in ``dt`` [s] (its ``state_transition_feasibility``)."""
+    _require_commonroad()
+    _shape_module_of_old()
+    from commonroad.common.solution import VehicleType
+    from commonroad_dc.feasibility.feasibility_checker import state_transition_feasibility
+    from commonroad_dc.feasibility.vehicle_dynamics import VehicleDynamics
+
+    dynamics = VehicleDynamics.KS(VehicleType(vehicle_type))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return [
+            bool(state_transition_feasibility(a, b, dynamics, dt)[0]) for a, b in itertools.pairwise(states)
+        ]
 
 
 def load(path: str | Path, *, planning_problem_id: int | None = None) -> Conversion:

@@ -1,9 +1,10 @@
 """The optional extras the tooling needs, and a clear error naming the ``pip install`` when one is missing.
 
 ``tools`` (matplotlib, Pillow, tqdm) draws and shows progress: every ``kappa-planner`` command and
-``python -m planner_tools.figures`` need it. ``commonroad`` (commonroad-io) reads CommonRoad XML. The
-service (``app/``, ``planner/``, ``solvers/``) needs neither; ``pyproject.toml`` declares both under
-``[project.optional-dependencies]`` with these distributions.
+``python -m planner_tools.figures`` need it. ``commonroad`` (commonroad-io,
+commonroad-drivability-checker) reads CommonRoad XML, writes solutions and checks their feasibility.
+The service (``app/``, ``planner/``, ``solvers/``) needs neither; ``pyproject.toml`` declares both
+under ``[project.optional-dependencies]`` with these distributions.
 """
 
 from __future__ import annotations
@@ -51,4 +52,6 @@ class Extra:
 
 
 TOOLS = Extra("tools", {"matplotlib": "matplotlib", "PIL": "Pillow", "tqdm": "tqdm"})
-COMMONROAD = Extra("commonroad", {"commonroad": "commonroad-io"})
+COMMONROAD = Extra(
+    "commonroad", {"commonroad": "commonroad-io", "commonroad_dc": "commonroad-drivability-checker"}
+)

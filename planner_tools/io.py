@@ -22,6 +22,7 @@ import numpy as np
 
 from planner.errors import InvalidInputError
 from planner.problem import (
+    CAR_FIELDS,
     CircleObstacle,
     DynamicObstacle,
     Ego,
@@ -220,8 +221,16 @@ def problem_from_json(data: Any) -> PlanningProblem:
         curvature=None if curvature is None else _number(curvature, "ego.curvature"),
     )
 
-    vehicle_data = _object(top.get("vehicle", {}), "vehicle", set(_VEHICLE))
-    vehicle = Vehicle(**{k: _number(v, f"vehicle.{k}", positive=True) for k, v in vehicle_data.items()})
+    vehicle_data = _object(top.get("vehicle", {}), "vehicle", set(_VEHICLE) | set(CAR_FIELDS))
+    # a car's fields may be null (the point model: no wheelbase); the offset may be 0, the rest > 0
+    vehicle = Vehicle(
+        **{
+            k: _number(v, f"vehicle.{k}", minimum=0.0 if k == "rear_axle_offset" else None,
+                       positive=k != "rear_axle_offset")
+            for k, v in vehicle_data.items()
+            if not (v is None and k in CAR_FIELDS)
+        }
+    )  # fmt: skip
 
     opt = _object(top.get("options", {}), "options", set(_OPTION_TYPES))
     values = {key: _option(key, value) for key, value in opt.items()}
@@ -275,6 +284,9 @@ def problem_to_json(problem: PlanningProblem) -> dict[str, Any]:
             "acceleration": float(e.acceleration),
             "curvature": None if e.curvature is None else float(e.curvature),
         },
-        "vehicle": {k: float(getattr(v, k)) for k in _VEHICLE},
+        "vehicle": {
+            **{k: float(getattr(v, k)) for k in _VEHICLE},
+            **{k: float(getattr(v, k)) for k in CAR_FIELDS if getattr(v, k) is not None},
+        },
         "options": {k: getattr(o, k) for k in _OPTION_TYPES},
     }

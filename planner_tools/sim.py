@@ -1,26 +1,30 @@
 """Closed-loop simulation: replan every ``replan_period`` from the vehicle's state, drive the plan's
 first stretch with a kinematic bicycle model and a simple tracker, record everything, score the run.
 
-Vehicle model — kinematic bicycle referenced at the footprint's centre ``(x, y)``, with wheelbase ``ℓ``,
-the rear axle ``ℓ_r`` behind the centre, body yaw ``ψ`` [rad], speed ``v`` [m/s] of the centre and
-front-wheel steering angle ``δ`` [rad]::
+Vehicle model — kinematic bicycle (kinematic single-track) with wheelbase ``ℓ``, the rear axle ``ℓ_r``
+behind the footprint's centre ``(x, y)``, body yaw ``ψ`` [rad] and front-wheel steering angle ``δ``
+[rad]. The rear axle does not slip; a point ``a`` ahead of it along the body (the centre: ``a = ℓ_r``)
+moves at its slip angle ``β_a = atan(a/ℓ · tan δ)`` off the yaw. The model is referenced at the point
+the planner plans (:attr:`BicycleModel.at_rear_axle`): ``speed`` ``v`` [m/s], path ``curvature`` ``κ``
+[1/m] and ``course`` ``χ = ψ + β`` [rad] are that point's::
 
-    β = atan(ℓ_r/ℓ · tan δ)            slip angle of the centre
-    ẋ = v cos(ψ + β),  ẏ = v sin(ψ + β),  ψ̇ = v tan δ cos β / ℓ,  v̇ = a  (v ≥ 0)
+    ẋ_p = v cos(ψ + β),  ẏ_p = v sin(ψ + β),  ψ̇ = v tan δ cos β / ℓ,  v̇ = a  (v ≥ 0)
 
-At constant ``δ`` the centre runs on a circle of curvature ``κ = tan δ cos β / ℓ`` [1/m] — the path
-curvature the planner speaks of — and its direction of travel, the *course* ``χ = ψ + β``, is what the
-planner calls the heading (a trajectory point's heading is its path's tangent). The footprint,
-``length × width`` centred at ``(x, y)``, is turned by the body yaw ``ψ``; the simulator scores
-collisions with that footprint.
+At constant ``δ`` the point runs on a circle of curvature ``κ = tan δ cos β / ℓ``; its course is what
+the planner calls the heading. The footprint, ``length × width`` centred at ``(x, y)``, is turned by the
+body yaw ``ψ``; the simulator scores collisions with that footprint.
 
-By default ``ℓ_r = 0``: the vehicle the planner's contract describes, whose footprint is centred on the
-trajectory point and turned with the path (β = 0; a differential-drive robot, or a car planned by the
-point that does not slip). With ``ℓ_r = ℓ/2`` (:meth:`BicycleModel.for_vehicle` with
-``centre_midway=True``, ``--centre-midway`` on the command line) it is a car referenced midway between
-its axles: in a turn its body is yawed by ``β`` against the path (≈ 11° at κ = 0.14 1/m for a 4.5 m
-car), which the planner's footprint does not model — its outer front corner swings out by about
-``(length/2)·sin β``.
+* A car (a :class:`~planner.problem.Vehicle` with a ``wheelbase``; :meth:`BicycleModel.for_vehicle`):
+  the vehicle's own wheelbase, rear axle and steering limits, referenced at the rear axle (β = 0,
+  ``κ = tan δ / ℓ``, the course is the yaw): CommonRoad's kinematic single-track model, driven from
+  the answer's pose (the rear axle ``ℓ_r`` behind each trajectory point along its heading, the body's
+  yaw).
+* The point model (no wheelbase): by default ``ℓ_r = 0``, the vehicle the planner's contract
+  describes, whose footprint is centred on the trajectory point and turned with the path (β = 0; a
+  differential-drive robot). With ``centre_midway=True`` (``--centre-midway`` on the command line) it
+  is a car referenced midway between its axles but planned as a point: in a turn its body is yawed by
+  ``β`` against the path (≈ 11° at κ = 0.14 1/m for a 4.5 m car), which the point model's footprint does
+  not model — its outer front corner swings out by about ``(length/2)·sin β``.
 
 Inputs are held for a sub-step of ``h = replan_period / substeps`` (zero-order hold, 100 Hz by
 default): the steering moves towards its command at most ``max_steering_rate·h``, then the motion
@@ -70,6 +74,8 @@ from planner.trajectory import Trajectory
 StepStatus = Literal["ok", "stopped", "fallback", "error"]
 Termination = Literal["goal", "collision", "timeout"]
 
+#: a coordinate or an array of them
+Coordinates = float | FloatArray
 #: the default goal is the reference's end less this many vehicle lengths [-]
 GOAL_MARGIN_LENGTHS = 1.0
 #: default duration: this many times the time to drive the rest of the reference at the target speed…
@@ -91,15 +97,18 @@ PROJECTION_WINDOW = 5.0
 
 @dataclass(frozen=True)
 class BicycleModel:
-    """Kinematic bicycle referenced at the footprint's centre (see the module docstring).
+    """Kinematic bicycle referenced at the planned point (see the module docstring).
 
     Attributes:
         wheelbase: ``ℓ`` [m].
-        rear_to_centre: ``ℓ_r``, rear axle to the geometric centre [m]; 0 puts the centre on the rear
-            axle, so that the footprint turns with the path (the planner's own assumption, β = 0).
+        rear_to_centre: ``ℓ_r``, rear axle to the footprint's centre [m]; with the model referenced at
+            the centre, 0 puts it on the rear axle, so that the footprint turns with the path (the point
+            model, β = 0).
         max_steering: largest ``|δ|`` [rad].
         max_steering_rate: largest ``|δ̇|`` [rad/s].
         substeps: sub-steps per replan period (inputs held over each).
+        at_rear_axle: referenced at the rear axle (a car: speed, curvature and course are the rear
+            axle's) rather than at the footprint's centre.
     """
 
     wheelbase: float
@@ -107,39 +116,86 @@ class BicycleModel:
     max_steering: float
     max_steering_rate: float = 0.7
     substeps: int = 10
+    at_rear_axle: bool = False
 
     @classmethod
     def for_vehicle(cls, vehicle: Vehicle, *, centre_midway: bool = False, **overrides: Any) -> BicycleModel:
-        """Wheelbase ``0.6·length``, steering limited to the vehicle's ``max_curvature``; the rear axle at
-        the centre (no slip: the planner's vehicle), or midway between the axles with ``centre_midway``."""
+        """A car's own wheelbase, rear axle and steering limits (its steering rate: ``max_steering_rate``
+        when it has one), referenced at the rear axle. The point model: wheelbase ``0.6·length``,
+        steering limited to the vehicle's ``max_curvature``; the rear axle at the centre (no slip: the
+        planner's vehicle), or midway between the axles with ``centre_midway``.
+
+        Raises:
+            InvalidInputError: ``centre_midway`` for a car (it is planned as the car it is).
+        """
+        if vehicle.wheelbase is not None:
+            if centre_midway:
+                raise InvalidInputError(
+                    "a car is planned at its rear axle; centre_midway drives a point model as a car",
+                    field="centre_midway",
+                )
+            limit = vehicle.steering_limit or 0.0  # a car has one
+            car = cls(vehicle.wheelbase, vehicle.rear_offset, limit, at_rear_axle=True)
+            if vehicle.max_steering_rate is not None:
+                car = replace(car, max_steering_rate=vehicle.max_steering_rate)
+            return replace(car, **overrides)
         wheelbase = 0.6 * vehicle.length
         rear = 0.5 * wheelbase if centre_midway else 0.0
         base = replace(cls(wheelbase=wheelbase, rear_to_centre=rear, max_steering=np.pi / 3), **overrides)
         limit = vehicle.max_curvature
-        if base.rear_to_centre > 0.0:
-            limit = min(limit, 0.999 / base.rear_to_centre)
+        if base.ahead > 0.0:
+            limit = min(limit, 0.999 / base.ahead)
         return replace(base, max_steering=base.steering_for(limit))
 
+    @property
+    def ahead(self) -> float:
+        """How far the reference point lies ahead of the rear axle [m]."""
+        return 0.0 if self.at_rear_axle else self.rear_to_centre
+
+    @property
+    def behind_centre(self) -> float:
+        """How far the reference point lies behind the footprint's centre [m]."""
+        return self.rear_to_centre if self.at_rear_axle else 0.0
+
     def slip_angle(self, steering: float) -> float:
-        """``β`` [rad] of the centre at steering ``δ`` [rad]."""
-        return math.atan(self.rear_to_centre / self.wheelbase * math.tan(steering))
+        """``β`` [rad] of the reference point at steering ``δ`` [rad]."""
+        return math.atan(self.ahead / self.wheelbase * math.tan(steering))
 
     def curvature(self, steering: float) -> float:
-        """Path curvature of the centre [1/m] at steering ``δ`` [rad]: ``sin β / ℓ_r = tan δ · cos β / ℓ``."""
+        """Path curvature of the reference point [1/m] at steering ``δ`` [rad]:
+        ``tan δ · cos β / ℓ``."""
         return math.tan(steering) * math.cos(self.slip_angle(steering)) / self.wheelbase
 
     def steering_for(self, curvature: float) -> float:
-        """The steering angle [rad] whose centre path has ``curvature`` [1/m] (``|κ ℓ_r|`` clipped below 1):
-        ``tan δ = κ ℓ / cos β`` with ``sin β = κ ℓ_r``."""
-        sin_beta = float(np.clip(curvature * self.rear_to_centre, -0.999, 0.999))
+        """The steering angle [rad] whose reference point's path has ``curvature`` [1/m]
+        (``|κ a|`` clipped below 1): ``tan δ = κ ℓ / cos β`` with ``sin β = κ a``."""
+        sin_beta = float(np.clip(curvature * self.ahead, -0.999, 0.999))
         return math.atan(curvature * self.wheelbase / math.sqrt(1.0 - sin_beta**2))
+
+    def centre_speed_ratio(self, steering: FloatArray) -> FloatArray:
+        """The footprint centre's speed over the reference point's at steering ``δ`` [rad]:
+        ``cos β / cos β_c`` (every point of the body moves along it at the rear axle's speed), 1 for a
+        model referenced at the centre."""
+        tan = np.tan(steering)
+        beta = np.arctan(self.ahead / self.wheelbase * tan)
+        beta_c = np.arctan(self.rear_to_centre / self.wheelbase * tan)
+        return np.asarray(np.cos(beta) / np.cos(beta_c))
+
+    def reference_point(
+        self, x: Coordinates, y: Coordinates, yaw: Coordinates
+    ) -> tuple[Coordinates, Coordinates]:
+        """The reference point [m] of footprint centres ``(x, y)`` [m] with body yaw ``ψ`` [rad]."""
+        back = self.behind_centre
+        if back == 0.0:
+            return x, y
+        return x - back * np.cos(yaw), y - back * np.sin(yaw)
 
 
 @dataclass(frozen=True)
 class VehicleState:
     """The simulated vehicle at time ``t`` [s]: centre ``x, y`` [m], body ``yaw`` [rad], ``steering``
-    [rad], speed [m/s] and acceleration [m/s²] of the centre; ``course`` [rad] (direction of travel)
-    and path ``curvature`` [1/m] follow from them."""
+    [rad], speed [m/s] and acceleration [m/s²] of the model's reference point (the centre, a car's rear
+    axle); its ``course`` [rad] (direction of travel) and path ``curvature`` [1/m] follow from them."""
 
     t: float
     x: float
@@ -152,7 +208,8 @@ class VehicleState:
     curvature: float
 
     def as_ego(self) -> Ego:
-        """The planner's ego: its heading is the centre's direction of travel."""
+        """The planner's ego: the centre, and the reference point's direction of travel (a car's yaw),
+        speed, acceleration and curvature."""
         return Ego(
             x=self.x,
             y=self.y,
@@ -164,8 +221,10 @@ class VehicleState:
 
 
 def initial_state(model: BicycleModel, ego: Ego, vehicle: Vehicle) -> VehicleState:
-    """The vehicle at an ego state (heading read as the course; unknown curvature taken as 0)."""
-    curvature = float(np.clip(ego.curvature or 0.0, -vehicle.max_curvature, vehicle.max_curvature))
+    """The vehicle at an ego state (heading read as the reference point's course; unknown curvature taken
+    as 0)."""
+    limit = vehicle.curvature_limit
+    curvature = float(np.clip(ego.curvature or 0.0, -limit, limit))
     steering = float(np.clip(model.steering_for(curvature), -model.max_steering, model.max_steering))
     beta = model.slip_angle(steering)
     return VehicleState(
@@ -186,9 +245,9 @@ def step_exact(
 ) -> VehicleState:
     """Hold ``acceleration`` [m/s²] and ``steering`` [rad] for ``h`` [s] and integrate exactly.
 
-    The steering is applied as given (limits are the caller's, see :func:`advance`). The centre moves
-    along an arc of curvature ``κ(δ)`` by ``v h + a h²/2`` (up to where the speed reaches 0); the yaw
-    turns by ``κ`` times that distance.
+    The steering is applied as given (limits are the caller's, see :func:`advance`). The reference
+    point moves along an arc of curvature ``κ(δ)`` by ``v h + a h²/2`` (up to where the speed reaches 0);
+    the yaw turns by ``κ`` times that distance; the centre is placed from the point along the yaw.
     """
     beta = model.slip_angle(steering)
     kappa = model.curvature(steering)
@@ -209,10 +268,15 @@ def step_exact(
         dx = (math.sin(chi0 + turn) - math.sin(chi0)) / kappa
         dy = (math.cos(chi0) - math.cos(chi0 + turn)) / kappa
     yaw = state.yaw + turn
+    x, y = state.x + dx, state.y + dy
+    back = model.behind_centre
+    if back:  # the reference point moved by (dx, dy); the centre is `back` ahead of it along the yaw
+        x += back * (math.cos(yaw) - math.cos(state.yaw))
+        y += back * (math.sin(yaw) - math.sin(state.yaw))
     return VehicleState(
         t=state.t + h,
-        x=state.x + dx,
-        y=state.y + dy,
+        x=x,
+        y=y,
         yaw=yaw,
         steering=steering,
         speed=v1,
@@ -268,8 +332,11 @@ class PlanPath:
     heading: FloatArray
 
     @classmethod
-    def of(cls, traj: Trajectory) -> PlanPath:
-        xy = np.column_stack((traj.x, traj.y))
+    def of(cls, traj: Trajectory, model: BicycleModel | None = None) -> PlanPath:
+        """The path of ``model``'s reference point along ``traj`` (default: its points, the centre's;
+        a car's rear axle lies behind each point along its heading, the body's yaw)."""
+        x, y = (traj.x, traj.y) if model is None else model.reference_point(traj.x, traj.y, traj.heading)
+        xy = np.column_stack((x, y))
         seg = np.diff(xy, axis=0)
         length = np.hypot(seg[:, 0], seg[:, 1])
         direction = seg / np.where(length > 0.0, length, 1.0)[:, None]
@@ -288,8 +355,11 @@ class TrackerOutput:
     station_error: float
 
 
-def track(path: PlanPath, tau: float, state: VehicleState, gains: TrackerGains) -> TrackerOutput:
-    """The tracker's commands at time ``tau`` [s] after the plan's start (see the module docstring)."""
+def track(
+    path: PlanPath, tau: float, state: VehicleState, gains: TrackerGains, model: BicycleModel | None = None
+) -> TrackerOutput:
+    """The tracker's commands at time ``tau`` [s] after the plan's start (see the module docstring), for
+    ``model``'s reference point (default: the centre ``state.x, state.y``) on ``path`` (the same point's)."""
     traj = path.trajectory
     sigma_ref = float(np.interp(tau, traj.t, path.sigma))
     v_ref = float(np.interp(tau, traj.t, traj.v))
@@ -308,7 +378,8 @@ def track(path: PlanPath, tau: float, state: VehicleState, gains: TrackerGains) 
             station_error=0.0,
         )
     idx = np.flatnonzero(near)
-    rel = np.array([state.x, state.y]) - path.start[idx]
+    px, py = (state.x, state.y) if model is None else model.reference_point(state.x, state.y, state.yaw)
+    rel = np.array([px, py]) - path.start[idx]
     along = np.clip(np.einsum("ij,ij->i", rel, path.direction[idx]), 0.0, path.length[idx])
     offset = rel - along[:, None] * path.direction[idx]
     best = int(np.argmin(np.hypot(offset[:, 0], offset[:, 1])))
@@ -493,7 +564,8 @@ class SimMetrics:
         backward_steps: cycles whose centre moved and ended with a smaller ``s``.
         fold_steps: cycles with an executed sample where ``κ·d ≥ 1``.
         max_lane_departure: farthest a footprint corner got outside the lane (≤ 0: inside).
-        max_lateral_acceleration: ``max v²|κ|``; ``max_longitudinal_jerk``, ``max_lateral_jerk``: of
+        max_lateral_acceleration: the centre's ``max v_c²/R_c`` (``v²|κ|`` at the centre, the yaw rate
+            times the centre's speed); ``max_longitudinal_jerk``, ``max_lateral_jerk``: of
             ``a`` and ``v²κ`` by differences between consecutive sub-steps at which the vehicle moves.
         max_tracking_error: largest lateral error of the tracker to the plan.
         planning_ms: ``median``, ``p95``, ``max`` of the plan calls' wall time [ms].
@@ -698,12 +770,12 @@ def simulate(
 
         cycle: list[VehicleState] = []
         worst = 0.0
-        path = PlanPath.of(result.trajectory) if result is not None else None
+        path = PlanPath.of(result.trajectory, model) if result is not None else None
         for i in range(model.substeps):
             if path is None:
                 a_cmd, k_cmd = -vehicle.max_deceleration, state.curvature
             else:
-                out = track(path, i * h, state, gains)
+                out = track(path, i * h, state, gains, model)
                 a_cmd, k_cmd = out.acceleration, out.curvature
                 worst = max(worst, abs(out.lateral_error))
             state = advance(model, vehicle, state, a_cmd, k_cmd, h)
@@ -752,6 +824,7 @@ def simulate(
     metrics = _metrics(
         ref,
         problem,
+        model,
         steps,
         motion,
         termination=termination,
@@ -805,6 +878,7 @@ def _per_cycle_any(flags: NDArray[np.bool_], step: NDArray[np.intp], cycles: int
 def _metrics(
     ref: ReferenceLine,
     problem: PlanningProblem,
+    model: BicycleModel,
     steps: list[SimStep],
     motion: Motion,
     *,
@@ -833,7 +907,8 @@ def _metrics(
     right = widths_at(problem.lane.right_width, ref, cf.s, field_name="lane.right_width")
     departure = float(np.max(np.maximum(cf.d - left, -right - cf.d)))
 
-    lat = motion.v**2 * motion.curvature
+    # the centre's: yaw rate v·κ times the centre's speed
+    lat = motion.v**2 * motion.curvature * model.centre_speed_ratio(motion.steering)
     dt = np.diff(motion.t)
     safe = np.where(dt > 0, dt, np.inf)
     # while moving: the step to a = 0 when the vehicle comes to rest is the integrator's, not the motion's

@@ -35,20 +35,35 @@ STAGE_DESCRIPTIONS = {
 
 
 class TrajectoryPoint(ResponseModel):
-    """One sample of the planned motion of the vehicle's centre."""
+    """One sample of the planned motion: the position of the footprint's centre and the vehicle's state.
+
+    Without `vehicle.wheelbase` (a vehicle whose centre does not slip), heading, curvature, speed and
+    acceleration are those of the centre's path and `steering_angle` is absent. With it (a car, the
+    kinematic single-track model), heading is the body's yaw, curvature the rear axle's path's
+    (tan(steering_angle) / wheelbase), speed and acceleration the rear axle's, and every point has its
+    `steering_angle`: the state of CommonRoad's kinematic single-track model, its position the centre's.
+    """
 
     t: float = Field(description="Time from now [s]; the first point is the ego at t = 0.")
     x: float = Field(description="Centre x [m].")
     y: float = Field(description="Centre y [m].")
     heading: float = Field(
         description="Heading, counter-clockwise from +x [rad]; continuous along the trajectory (not "
-        "wrapped to [-π, π])."
+        "wrapped to [-π, π]). The centre's direction of travel; a car's body yaw."
     )
-    curvature: float = Field(description="Path curvature, positive to the left [1/m].")
-    v: float = Field(description="Speed [m/s], never negative.")
-    a: float = Field(description="Acceleration along the path [m/s²].")
-    s: float = Field(description="Arc length on the reference [m].")
-    d: float = Field(description="Lateral offset from the reference, positive to the left [m].")
+    curvature: float = Field(
+        description="Path curvature, positive to the left [1/m]: the centre's path's; a car's rear axle "
+        "path's."
+    )
+    v: float = Field(description="Speed [m/s], never negative: the centre's; a car's rear axle's.")
+    a: float = Field(description="Acceleration along the path [m/s²]: the centre's; a car's rear axle's.")
+    s: float = Field(description="Arc length of the centre on the reference [m].")
+    d: float = Field(description="Lateral offset of the centre from the reference, positive to the left [m].")
+    steering_angle: float | SkipJsonSchema[None] = Field(
+        None,
+        description="A car's front wheel steering angle, positive to the left [rad]: atan(wheelbase · "
+        "curvature). Present exactly when the request's vehicle has a wheelbase.",
+    )
 
 
 class CandidateCounts(ResponseModel):

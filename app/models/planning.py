@@ -27,6 +27,8 @@ from app.limits import (
     MAX_PREDICTION_STATES,
     MAX_PREDICTION_TIME,
     MAX_SEED,
+    MAX_STEERING_ANGLE,
+    MAX_STEERING_RATE,
     MAX_TIME_BUDGET_MS,
     MAX_TOTAL_CANDIDATE_POINTS,
     MAX_TRAJECTORY_STEP,
@@ -35,10 +37,13 @@ from app.limits import (
     MAX_VEHICLE_LENGTH,
     MAX_VEHICLE_SPEED,
     MAX_VEHICLE_WIDTH,
+    MAX_WHEELBASE,
     MIN_OBSTACLE_SIZE,
     MIN_POINTS_PER_CANDIDATE,
     MIN_POLYGON_AREA,
     MIN_POLYGON_POINTS,
+    MIN_STEERING_ANGLE,
+    MIN_STEERING_RATE,
     MIN_TIME_BUDGET_MS,
     MIN_TRAJECTORY_STEP,
     MIN_VEHICLE_ACCELERATION,
@@ -218,23 +223,28 @@ Obstacle = Annotated[
 
 
 class Ego(RequestModel):
-    """The vehicle's current state (its geometric centre)."""
+    """The vehicle's current state: its footprint's centre; with a `vehicle.wheelbase` (a car), heading
+    is the body's yaw and speed, acceleration and curvature are its rear axle's."""
 
     x: Coordinate = Field(description="Centre x [m].")
     y: Coordinate = Field(description="Centre y [m].")
-    heading: Heading = Field(description="Heading, counter-clockwise from +x [rad].")
-    speed: Speed = Field(0.0, description="Speed [m/s].")
+    heading: Heading = Field(
+        description="Heading, counter-clockwise from +x [rad]: the centre's direction of travel; a car's "
+        "body yaw."
+    )
+    speed: Speed = Field(0.0, description="Speed [m/s] of the centre; of a car's rear axle.")
     acceleration: float = number(
         ge=-MAX_VEHICLE_ACCELERATION,
         le=MAX_VEHICLE_ACCELERATION,
         default=0.0,
-        description="Acceleration [m/s²].",
+        description="Acceleration [m/s²] of the centre; of a car's rear axle.",
     )
     curvature: float | None = number(
         ge=-MAX_VEHICLE_CURVATURE,
         le=MAX_VEHICLE_CURVATURE,
         default=None,
-        description="Path curvature [1/m], if known.",
+        description="Path curvature [1/m], if known: of the centre's path; of a car's rear axle path "
+        "(tan(steering angle) / wheelbase).",
     )
 
 
@@ -244,7 +254,21 @@ _OPTIONS = pp.Options()
 
 class Vehicle(RequestModel):
     """Vehicle footprint and limits (all positive; the acceleration and curvature limits at least
-    0.01 m/s² and 1e-4 1/m)."""
+    0.01 m/s² and 1e-4 1/m).
+
+    Without `wheelbase`, the planner's model is a vehicle whose footprint's centre does not slip (a
+    differential-drive robot, say): the footprint turns with the tangent of the centre's path. With
+    `wheelbase` (and `rear_axle_offset`), a car: a kinematic single-track vehicle whose rear axle does
+    not slip, planned at its rear axle, its footprint placed from there along the body's yaw."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "description": "Vehicle footprint and limits. Without `wheelbase`: a vehicle whose "
+            "footprint's centre does not slip (a differential-drive robot, say). With `wheelbase` and "
+            "`rear_axle_offset`: a car (kinematic single-track model), planned at its rear axle; "
+            "`rear_axle_offset` is at most half the `length`, and the steering limits need a `wheelbase`."
+        }
+    )
 
     length: float = number(
         gt=0.0, le=MAX_VEHICLE_LENGTH, default=_VEHICLE.length, description="Length [m]."
@@ -266,8 +290,59 @@ class Vehicle(RequestModel):
         ge=MIN_VEHICLE_CURVATURE,
         le=MAX_VEHICLE_CURVATURE,
         default=_VEHICLE.max_curvature,
-        description="[1/m]",
+        description="[1/m]; of a car's rear axle path with a `wheelbase`.",
     )
+    wheelbase: float | None = number(
+        gt=0.0,
+        le=MAX_WHEELBASE,
+        default=None,
+        description="A car's wheelbase [m]; null: the point model (a vehicle whose centre does not slip).",
+    )
+    rear_axle_offset: float | None = number(
+        ge=0.0,
+        le=MAX_VEHICLE_LENGTH / 2,
+        default=None,
+        description="How far a car's rear axle lies behind the footprint's centre [m], at most "
+        "`length`/2; required with `wheelbase`.",
+    )
+    max_steering_angle: float | None = number(
+        ge=MIN_STEERING_ANGLE,
+        le=MAX_STEERING_ANGLE,
+        default=None,
+        description="A car's largest |steering angle| [rad]; null: atan(`wheelbase` · `max_curvature`).",
+    )
+    max_steering_rate: float | None = number(
+        ge=MIN_STEERING_RATE,
+        le=MAX_STEERING_RATE,
+        default=None,
+        description="A car's largest |steering rate| [rad/s]; null: no bound.",
+    )
+
+    @model_validator(mode="after")
+    def _car(self) -> Vehicle:
+        if self.wheelbase is None:
+            for name in ("rear_axle_offset", "max_steering_angle", "max_steering_rate"):
+                if getattr(self, name) is not None:
+                    raise field_error(
+                        (name,), "needs_wheelbase", "needs a wheelbase (a car)", getattr(self, name)
+                    )
+            return self
+        if self.rear_axle_offset is None:
+            raise field_error(
+                ("rear_axle_offset",),
+                "missing",
+                "is required with a wheelbase: how far the rear axle lies behind the footprint's centre",
+                None,
+            )
+        if self.rear_axle_offset > 0.5 * self.length:
+            raise field_error(
+                ("rear_axle_offset",),
+                "rear_axle_outside",
+                f"{self.rear_axle_offset} m is more than half the length ({0.5 * self.length} m): the rear "
+                "axle must lie under the footprint",
+                self.rear_axle_offset,
+            )
+        return self
 
 
 class Options(RequestModel):

@@ -6,6 +6,7 @@ the smallest accepted values still plan.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import pytest
@@ -30,6 +31,9 @@ PAIRS = [
     (api.MAX_OBSTACLE_SIZE, planner.MAX_SIZE, True),
     (api.MAX_VEHICLE_LENGTH, planner.MAX_SIZE, True),
     (api.MAX_VEHICLE_WIDTH, planner.MAX_SIZE, True),
+    (api.MAX_WHEELBASE, planner.MAX_SIZE, True),
+    (api.MAX_STEERING_ANGLE, 0.5 * math.pi, True),
+    (api.MIN_STEERING_RATE, planner.SMALLEST_LIMIT, False),
     (api.MAX_VEHICLE_SPEED, planner.MAX_EGO_SPEED, True),
     (api.MAX_VEHICLE_ACCELERATION, planner.MAX_ACCELERATION, True),
     (api.MAX_VEHICLE_CURVATURE, planner.MAX_EGO_CURVATURE, True),

@@ -29,6 +29,7 @@ from planner.errors import InvalidInputError
 from planner.frenet import to_frenet
 from planner.pipeline import plan
 from planner.problem import (
+    CAR_FIELDS,
     MAX_ACCELERATION,
     MAX_CANDIDATE_POINTS,
     MAX_EGO_CURVATURE,
@@ -587,10 +588,20 @@ def _api_bounds() -> list[Any]:
 @pytest.mark.parametrize(("section", "name", "value"), _api_bounds())
 def test_every_bound_the_api_accepts_the_library_accepts(section: str, name: str, value: Any) -> None:
     body = conversions.from_problem(demo_problem()).model_dump()
+    if section == "vehicle" and name in CAR_FIELDS:  # a car: the demo's vehicle with a wheelbase
+        body["vehicle"].update(wheelbase=2.7, rear_axle_offset=1.35)
     body[section][name] = value
     if body["options"]["dt"] > body["options"]["horizon_time"]:  # refused as a whole by the API
         with pytest.raises(ValidationError, match=r"options\.dt"):
             api.PlanningRequest.model_validate(body)
+        return
+    if (name, value) == ("rear_axle_offset", limits.MAX_VEHICLE_LENGTH / 2):  # behind a 4.5 m vehicle
+        with pytest.raises(ValidationError, match=r"vehicle\.rear_axle_offset"):
+            api.PlanningRequest.model_validate(body)
+        body["vehicle"]["length"] = limits.MAX_VEHICLE_LENGTH
+        # the 100 m vehicle's rear axle, 50 m behind the ego's centre, is off the road
+        with pytest.raises(InvalidInputError, match="before the start of the reference line"):
+            plan(conversions.to_problem(api.PlanningRequest.model_validate(body)))
         return
     problem = conversions.to_problem(api.PlanningRequest.model_validate(body))
     if section == "ego" and name in ("x", "y", "heading"):

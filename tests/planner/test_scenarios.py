@@ -22,6 +22,7 @@ Choices the issue leaves open, made here on purpose:
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -151,10 +152,20 @@ def _segments_cross(p: np.ndarray) -> tuple[int, int] | None:
 
 
 def trajectory_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
-    """Every broken check of ``traj`` for ``problem``, each with where and by how much; [] if none."""
+    """Every broken check of ``traj`` for ``problem``, each with where and by how much; [] if none.
+
+    A car (a vehicle with a wheelbase) is judged as a kinematic single-track vehicle: its points are
+    the footprint's centre and ``heading`` the body's yaw, so the footprint is placed as for the point
+    model, while the motion checks (heading along the direction of motion, ``∫curvature dσ``, steps of
+    ``v·dt``) apply to its rear axle, ``rear_axle_offset`` behind the centre along the yaw, which does
+    not slip; the lateral acceleration is the centre's, ``v²|κ|√(1 + (l_r κ)²)``; and the steering angle
+    is ``atan(wheelbase · κ)``, within ``max_steering_angle`` (default ``atan(wheelbase · max_curvature)``).
+    """
     out: list[str] = []
     veh, ego = problem.vehicle, problem.ego
-    fields = ("t", "x", "y", "heading", "curvature", "v", "a", "s", "d")
+    car = veh.wheelbase is not None
+    fields: tuple[str, ...] = ("t", "x", "y", "heading", "curvature", "v", "a", "s", "d")
+    fields += ("steering_angle",) if car else ()
     arrays = {f: np.asarray(getattr(traj, f), dtype=float) for f in fields}
     n = arrays["t"].shape[0]
     if n < 2 or any(arr.shape != (n,) for arr in arrays.values()):
@@ -164,6 +175,26 @@ def trajectory_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]
         return [f"non-finite values in {bad}"]
     t, x, y, v, a = arrays["t"], arrays["x"], arrays["y"], arrays["v"], arrays["a"]
     heading, curv = arrays["heading"], arrays["curvature"]
+    # the point that moves along the heading at speed v: the centre, a car's rear axle
+    offset = float(veh.rear_axle_offset or 0.0)
+    px, py = x - offset * np.cos(heading), y - offset * np.sin(heading)
+    if car:
+        assert veh.wheelbase is not None
+        steering = arrays["steering_angle"]
+        limit = veh.max_steering_angle or np.arctan(veh.wheelbase * veh.max_curvature)
+        wrong = np.abs(steering - np.arctan(veh.wheelbase * curv))
+        if np.any(wrong > 1e-9):
+            i = int(np.argmax(wrong))
+            out.append(f"steering angle {steering[i]:.4f} rad is not atan(W κ) at {_at(traj, i)}")
+        if np.any(np.abs(steering) > limit * (1 + REL_TOL) + 1e-4):
+            i = int(np.argmax(np.abs(steering)))
+            out.append(f"|steering angle| {abs(steering[i]):.3f} rad above {limit:.3f} at {_at(traj, i)}")
+        if veh.max_steering_rate is not None:
+            rate = np.abs(np.diff(steering)) / np.diff(t)
+            if np.any(rate > veh.max_steering_rate * (1 + REL_TOL) + 1e-3):
+                i = int(np.argmax(rate))
+                limit_rate = veh.max_steering_rate
+                out.append(f"steering rate {rate[i]:.3f} rad/s above {limit_rate} at {_at(traj, i)}")
 
     # time and start
     if abs(t[0]) > 1e-9:
@@ -200,7 +231,7 @@ def trajectory_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]
             f"|curvature| {ac[i]:.4f} 1/m above max_curvature {veh.max_curvature} while moving "
             f"at {_at(traj, i)}"
         )
-    lat = v**2 * ac
+    lat = v**2 * ac * np.sqrt(1.0 + (offset * curv) ** 2)
     lat_over = lat - (veh.max_lateral_acceleration * (1 + REL_TOL) + ACC_ABS_TOL)
     if np.any(lat_over > 0):
         i = int(np.argmax(lat_over))
@@ -209,8 +240,8 @@ def trajectory_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]
             f"at {_at(traj, i)} (κ = {curv[i]:.4f})"
         )
 
-    # positions consistent with the speeds
-    dx, dy = np.diff(x), np.diff(y)
+    # positions (of the point that moves at v: the centre, a car's rear axle) consistent with the speeds
+    dx, dy = np.diff(px), np.diff(py)
     step = np.hypot(dx, dy)
     expected = 0.5 * (v[:-1] + v[1:]) * dt
     err = np.abs(step - expected)
@@ -221,7 +252,7 @@ def trajectory_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]
             f"(off by {err[i]:.3f} m) at {_at(traj, i)}"
         )
 
-    # heading is the direction of motion; its change is ∫curvature dσ
+    # heading is the direction of motion (of a car's rear axle); its change is ∫curvature dσ
     has_dir = step > MIN_DIRECTION_STEP
     motion = np.arctan2(dy, dx)
     mid_heading = heading[:-1] + 0.5 * _wrap(heading[1:] - heading[:-1])
@@ -372,8 +403,22 @@ def footprint_frenet(problem: PlanningProblem, traj: Trajectory) -> tuple[np.nda
 # Scenarios
 # --------------------------------------------------------------------------------------------------
 
+#: the car every analytic scenario is also planned for: wheelbase 2.7 m, rear axle 1.35 m behind the centre
+CAR = {"wheelbase": 2.7, "rear_axle_offset": 1.35}
 
-def test_paper_u_turn_with_corner_obstacle_and_wide_inner_side() -> None:
+
+@pytest.fixture(params=["point", "car"])
+def model(request: pytest.FixtureRequest) -> str:
+    """The vehicle model of a scenario: the point model (no wheelbase) or :data:`CAR`."""
+    return str(request.param)
+
+
+def _vehicle(model: str, **limits: float) -> Vehicle:
+    """The scenario's vehicle with ``limits``, as the point model or as :data:`CAR`."""
+    return Vehicle(**limits, **(CAR if model == "car" else {}))
+
+
+def test_paper_u_turn_with_corner_obstacle_and_wide_inner_side(model: str) -> None:
     # The paper's U-shaped road: radius 8 m, the lane's inner side (11 m) wider than the radius, a cone
     # on the outer half of the lane at the apex. Passing it means going inside, where naive offsets fold.
     radius = 8.0
@@ -384,7 +429,7 @@ def test_paper_u_turn_with_corner_obstacle_and_wide_inner_side() -> None:
         lane=Lane(left_width=radius + 3.0, right_width=3.5),
         ego=Ego(x=-12.0, y=0.0, heading=0.0, speed=5.0),
         obstacles=(cone,),
-        vehicle=Vehicle(),
+        vehicle=_vehicle(model),
         options=Options(horizon_time=8.0, dt=0.1, target_speed=7.0),
     )
     result = planned(problem)
@@ -403,7 +448,7 @@ def test_paper_u_turn_with_corner_obstacle_and_wide_inner_side() -> None:
     assert np.all(1.0 - reference_of(problem).kappa_at(s) * d > 0.0)
 
 
-def test_hairpin_at_the_turning_limit_moves_outwards() -> None:
+def test_hairpin_at_the_turning_limit_moves_outwards(model: str) -> None:
     # Radius 5 m = 1/max_curvature: the centre line itself is at the limit, and the entry needs a
     # curvature ramp, so the path must run outside the centre line (d < 0 in this left hairpin).
     radius, kappa_max = 5.0, 0.2
@@ -411,7 +456,7 @@ def test_hairpin_at_the_turning_limit_moves_outwards() -> None:
         reference_line=u_turn(radius=radius, leg=30.0, step=0.5),
         lane=Lane(left_width=3.5, right_width=4.0),
         ego=Ego(x=-10.0, y=0.0, heading=0.0, speed=3.0),
-        vehicle=Vehicle(max_curvature=kappa_max),
+        vehicle=_vehicle(model, max_curvature=kappa_max),
         options=Options(horizon_time=8.0, dt=0.1, target_speed=4.0),
     )
     result = planned(problem)
@@ -429,7 +474,7 @@ def test_hairpin_at_the_turning_limit_moves_outwards() -> None:
     assert np.all(np.abs(traj.curvature[moving]) <= kappa_max * (1 + REL_TOL) + CURV_ABS_TOL)
 
 
-def test_s_curve_with_parked_cars_on_alternating_sides() -> None:
+def test_s_curve_with_parked_cars_on_alternating_sides(model: str) -> None:
     road = Road(
         [
             straight_piece(20.0),
@@ -451,7 +496,7 @@ def test_s_curve_with_parked_cars_on_alternating_sides() -> None:
         lane=Lane(left_width=3.5, right_width=3.5),
         ego=Ego(x=x0, y=y0, heading=h0, speed=8.0),
         obstacles=obstacles,
-        vehicle=Vehicle(),
+        vehicle=_vehicle(model),
         options=Options(horizon_time=10.0, dt=0.1, target_speed=9.0),
     )
     result = planned(problem)
@@ -470,7 +515,7 @@ def test_s_curve_with_parked_cars_on_alternating_sides() -> None:
         assert s_car < s_fp.max()
 
 
-def test_corner_tighter_than_the_minimum_radius_is_driven_wide() -> None:
+def test_corner_tighter_than_the_minimum_radius_is_driven_wide(model: str) -> None:
     # A 90° left corner on a 3 m radius; the vehicle turns on 5 m at least (max_curvature 0.2).
     # Drivable within the lane, hence status "ok": the centre must run ≥ 2 m outside the centre line
     # through the corner (radius 3 + 2 = 5 about the corner's centre). Footprint at that radius: the
@@ -485,7 +530,7 @@ def test_corner_tighter_than_the_minimum_radius_is_driven_wide() -> None:
         reference_line=road.polyline(0.5),
         lane=Lane(left_width=2.5, right_width=5.0),
         ego=Ego(x=x0, y=y0, heading=h0, speed=3.0),
-        vehicle=Vehicle(max_curvature=kappa_max),
+        vehicle=_vehicle(model, max_curvature=kappa_max),
         options=Options(horizon_time=8.0, dt=0.1, target_speed=4.0),
     )
     result = planned(problem)
@@ -499,7 +544,7 @@ def test_corner_tighter_than_the_minimum_radius_is_driven_wide() -> None:
     assert np.all(d[in_corner] < -2.0 + 0.05), f"max d in the corner {d[in_corner].max():.2f} m"
 
 
-def test_wall_across_the_lane_stops_short_of_it() -> None:
+def test_wall_across_the_lane_stops_short_of_it(model: str) -> None:
     road = Road([straight_piece(20.0), arc_piece(80.0, np.radians(60.0))])
     x0, y0, h0 = road.pose(10.0)
     s_wall = 45.0
@@ -509,7 +554,7 @@ def test_wall_across_the_lane_stops_short_of_it() -> None:
         lane=Lane(left_width=3.5, right_width=3.5),
         ego=Ego(x=x0, y=y0, heading=h0, speed=8.0),
         obstacles=(wall,),
-        vehicle=Vehicle(),
+        vehicle=_vehicle(model),
         options=Options(horizon_time=8.0, dt=0.1, target_speed=10.0),
     )
     result = planned(problem)
@@ -526,7 +571,7 @@ def test_wall_across_the_lane_stops_short_of_it() -> None:
     assert float(shapely.distance(prints, shapely.Polygon(wall.polygon)).min()) > 0.0
 
 
-def test_slow_leader_in_a_narrow_lane_is_followed() -> None:
+def test_slow_leader_in_a_narrow_lane_is_followed(model: str) -> None:
     # 3.6 m lane, the leader 1.8 m wide in its middle: no room to pass. Safe gap, at every time: if
     # the leader braked at full deceleration right then, the ego braking as hard (no reaction time)
     # would still stop 1 m behind it: gap ≥ 1 m + (v_ego² − v_lead²)/(2·max_deceleration).
@@ -540,7 +585,7 @@ def test_slow_leader_in_a_narrow_lane_is_followed() -> None:
         lane=Lane(left_width=1.8, right_width=1.8),
         ego=Ego(x=x0, y=y0, heading=h0, speed=8.0),
         obstacles=(lead,),
-        vehicle=Vehicle(),
+        vehicle=_vehicle(model),
         options=Options(horizon_time=horizon, dt=0.1, target_speed=10.0),
     )
     result = planned(problem)
@@ -561,7 +606,7 @@ def test_slow_leader_in_a_narrow_lane_is_followed() -> None:
     assert gap[-1] < 15.0, f"dropped back to a {gap[-1]:.1f} m gap instead of following"
 
 
-def test_pedestrian_crossing_ahead_is_yielded_to() -> None:
+def test_pedestrian_crossing_ahead_is_yielded_to(model: str) -> None:
     # A 0.6 m × 0.6 m pedestrian walks across the road at 1.5 m/s, 25 m ahead of the car. It is in the
     # car's way (|y| ≤ 0.9 + 0.3) for t ∈ [2.2, 3.8] s; the car cannot clear the crossing before 2.2 s
     # even at full acceleration (8·2.2 + ½·2.5·2.2² ≈ 23.7 m < the 27.6 m needed), so it must yield.
@@ -575,7 +620,7 @@ def test_pedestrian_crossing_ahead_is_yielded_to() -> None:
         lane=Lane(left_width=3.5, right_width=3.5),
         ego=Ego(x=10.0, y=0.0, heading=0.0, speed=8.0),
         obstacles=(ped,),
-        vehicle=Vehicle(),
+        vehicle=_vehicle(model),
         options=Options(horizon_time=8.0, dt=0.1, target_speed=10.0),
     )
     result = planned(problem)
@@ -605,7 +650,7 @@ HIGHWAY = Road(
 
 
 @pytest.mark.parametrize("s_ego", [50.0, 420.0, 900.0, 1300.0, 1700.0])
-def test_two_km_highway_as_a_coarse_polyline(s_ego: float) -> None:
+def test_two_km_highway_as_a_coarse_polyline(s_ego: float, model: str) -> None:
     assert HIGHWAY.length > 2000.0
     target = 25.0
     x0, y0, h0 = HIGHWAY.pose(s_ego)
@@ -613,7 +658,7 @@ def test_two_km_highway_as_a_coarse_polyline(s_ego: float) -> None:
         reference_line=HIGHWAY.polyline(5.0),
         lane=Lane(left_width=3.75, right_width=3.75),
         ego=Ego(x=x0, y=y0, heading=h0, speed=target),
-        vehicle=Vehicle(max_speed=36.0),
+        vehicle=_vehicle(model, max_speed=36.0),
         options=Options(horizon_time=8.0, dt=0.1, target_speed=target),
     )
     result = planned(problem)
@@ -740,7 +785,8 @@ _ON_ARC = PlanningProblem(_ARC.polyline(0.5), Lane(3.5, 3.5), Ego(0.0, 0.0, 0.0,
 
 
 def _replace(traj: Trajectory, **fields: np.ndarray) -> Trajectory:
-    values = {f: getattr(traj, f) for f in ("t", "x", "y", "heading", "curvature", "v", "a", "s", "d")}
+    names = ("t", "x", "y", "heading", "curvature", "v", "a", "s", "d", "steering_angle")
+    values = {f: getattr(traj, f) for f in names}
     values.update(fields)
     return Trajectory(**values)
 
@@ -779,6 +825,11 @@ def _broken() -> list[tuple[str, PlanningProblem, Trajectory, str]]:
         [arc_piece(20.0, np.pi)], origin=(20.0 * np.sin(before), 20.0 * (1 - np.cos(before))), heading=before
     )
     tight = PlanningProblem(on_circle.polyline(0.5), Lane(0.8, 3.5), _ON_ARC.ego)
+    car_on_arc = replace(_ON_ARC, vehicle=Vehicle(wheelbase=2.7, rear_axle_offset=2.25))
+
+    def steered(traj: Trajectory) -> Trajectory:
+        return replace(traj, steering_angle=np.arctan(2.7 * traj.curvature))
+
     return [
         ("start", _STRAIGHT, _replace(st, x=st.x + 0.1), "from the ego"),
         ("t0", _STRAIGHT, _replace(st, t=st.t + 0.1), "t[0]"),
@@ -803,6 +854,10 @@ def _broken() -> list[tuple[str, PlanningProblem, Trajectory, str]]:
         ),
         ("circle", with_obstacle(CircleObstacle("cone", np.array([30.0, -1.2]), 0.4)), st, "obstacle cone"),
         ("moving", with_obstacle(DynamicObstacle("walker", 0.6, 0.6, walk)), st, "obstacle walker"),
+        # the centre on the circle, read as a car's: its rear axle 2.25 m behind slips by atan(2.25/20)
+        ("car slips", car_on_arc, steered(arc), "off the direction of motion"),
+        ("steering angle", car_on_arc, _replace(steered(arc), steering_angle=np.full(arc.t.shape, 0.2)),
+         "is not atan(W κ)"),
     ]
 
 

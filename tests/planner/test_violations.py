@@ -13,8 +13,8 @@ from planner.problem import DynamicObstacle, Ego, Lane, Obstacle, PlanningProble
 from planner.reference import ReferenceLine, build_reference
 from planner.roads import arc, straight
 from planner.st_bounds import static_shapes
-from planner.trajectory import Trajectory, frenet_path, sample
-from planner.validation import HITS, Violation, ViolationKind, trajectory_violations
+from planner.trajectory import Trajectory, body_trajectory, frenet_path, sample
+from planner.validation import HITS, Violation, ViolationKind, consistency_violations, trajectory_violations
 
 DT, SPEED = 0.1, 5.0
 STRAIGHT = build_reference(straight(200.0, step=1.0))
@@ -31,6 +31,8 @@ def _along(ref: ReferenceLine, speed: float = SPEED, steps: int = 50) -> Traject
 
 
 def _problem(ref: ReferenceLine, traj: Trajectory, *obstacles: Obstacle, **vehicle: float) -> PlanningProblem:
+    """The problem whose ego is the trajectory's first point (a car's: the first point is its centre,
+    ``heading`` its yaw)."""
     ego = Ego(x=float(traj.x[0]), y=float(traj.y[0]), heading=float(traj.heading[0]), speed=float(traj.v[0]))
     return PlanningProblem(ref.points, Lane(3.5, 3.5), ego, obstacles, Vehicle(**vehicle))
 
@@ -85,6 +87,8 @@ def _box(x0: float, x1: float, y0: float, y1: float) -> np.ndarray:
 
 
 CLEAN = _along(STRAIGHT)
+#: a car (wheelbase, rear axle 1.35 m behind the centre)
+CAR = {"wheelbase": 2.7, "rear_axle_offset": 1.35}
 
 
 def _case(kind: ViolationKind) -> tuple[PlanningProblem, Trajectory]:
@@ -121,6 +125,16 @@ def _case(kind: ViolationKind) -> tuple[PlanningProblem, Trajectory]:
         return _problem(STRAIGHT, CLEAN, parked), CLEAN
     if kind is ViolationKind.HITS_MOVING_OBSTACLE:
         return _problem(STRAIGHT, CLEAN, _crossing(3.0)), CLEAN
+    if kind is ViolationKind.REAR_AXLE_SLIPS:
+        # straight on along x, the body yawed by 0.2 rad: its rear axle moves 0.2 rad off the yaw
+        yawed = replace(CLEAN, heading=np.full(CLEAN.size, 0.2), steering_angle=np.zeros(CLEAN.size))
+        return _problem(STRAIGHT, yawed, **CAR), yawed
+    if kind is ViolationKind.STEERING_ANGLE:  # default limit atan(2.7 · 0.2) ≈ 0.495 rad
+        steered = replace(CLEAN, steering_angle=_set(np.zeros(CLEAN.size), 20, 0.6))
+        return _problem(STRAIGHT, CLEAN, **CAR), steered
+    if kind is ViolationKind.STEERING_RATE:  # 0.2 rad in 0.1 s: 2 rad/s
+        steered = replace(CLEAN, steering_angle=np.where(np.arange(CLEAN.size) > 20, 0.2, 0.0))
+        return _problem(STRAIGHT, CLEAN, **CAR, max_steering_rate=1.0), steered
     if kind is ViolationKind.FRENET:
         return _problem(STRAIGHT, CLEAN), replace(CLEAN, d=_set(CLEAN.d, 20, 0.5))  # the position stays
     if kind is ViolationKind.HEADING:
@@ -138,6 +152,42 @@ def _case(kind: ViolationKind) -> tuple[PlanningProblem, Trajectory]:
 def test_the_clean_trajectories_pass_every_check() -> None:
     for ref, traj in ((STRAIGHT, CLEAN), (BEND, _along(BEND))):
         assert _violations(_problem(ref, traj), traj) == []
+
+
+def _car_along(ref: ReferenceLine, vehicle: Vehicle) -> Trajectory:
+    """A car driving along the reference with its rear axle on it (at a constant speed): its centre
+    ahead along the yaw, as :func:`planner.trajectory.body_trajectory` gives it."""
+    return body_trajectory(ref, vehicle, _along(ref))
+
+
+def test_a_car_driving_on_a_circle_passes_the_car_checks_and_its_centre_slips() -> None:
+    vehicle = Vehicle(**CAR, max_steering_rate=0.5)
+    car = _car_along(BEND, vehicle)
+    assert car.steering_angle is not None
+    np.testing.assert_allclose(car.steering_angle[1:-1], np.arctan(2.7 / 30.0), rtol=1e-3)
+    assert _violations(_problem(BEND, car, **CAR, max_steering_rate=0.5), car) == []
+    # a point model's trajectory on an 8 m circle read as a car's: its centre moves along the yaw, so
+    # the point 2.25 m behind it (the car's rear axle) moves atan(2.25/8) off the yaw
+    tight = build_reference(arc(8.0, 2.0, step=0.5))
+    point = _along(tight)
+    found = consistency_violations(tight, Vehicle(wheelbase=2.7, rear_axle_offset=2.25), point)
+    (slipping,) = [v for v in found if v.kind is ViolationKind.REAR_AXLE_SLIPS]
+    assert slipping.value == pytest.approx(np.arctan(2.25 / 8.0), rel=0.05)
+
+
+def test_a_cars_lateral_acceleration_is_its_centres() -> None:
+    # rear axle on a 30 m circle at 5 m/s: v²κ = 0.833 m/s², the centre's v²κ√(1 + (l_r κ)²) more
+    vehicle = Vehicle(**CAR)
+    car = _car_along(BEND, vehicle)
+    limit = 25.0 / 30.0 * 1.0005  # above v²κ (and its tolerances), below the centre's
+    offset = 2.25
+    big = {"wheelbase": 2.7, "rear_axle_offset": offset}
+    assert _violations(_problem(BEND, car, **CAR, max_lateral_acceleration=limit), car) == []
+    wide = _car_along(BEND, Vehicle(**big))
+    expected = 25.0 / 30.0 * np.sqrt(1.0 + (offset / 30.0) ** 2)
+    (lateral,) = _violations(_problem(BEND, wide, **big, max_lateral_acceleration=limit), wide)
+    assert lateral.kind is ViolationKind.LATERAL_ACCELERATION
+    assert lateral.value == pytest.approx(expected, rel=2e-3)
 
 
 @pytest.mark.parametrize("kind", list(ViolationKind), ids=lambda k: k.value)
@@ -164,6 +214,9 @@ MESSAGES = {
     ViolationKind.TURN: "curvature inconsistent with the heading's change",
     ViolationKind.SPEED: "speed 5.00 m/s above max_speed",
     ViolationKind.ROAD_END: "the front passes the end of the reference line",
+    ViolationKind.REAR_AXLE_SLIPS: "the rear axle moves 0.200 rad off the body's yaw",
+    ViolationKind.STEERING_ANGLE: "steering angle 0.600 rad above max_steering_angle",
+    ViolationKind.STEERING_RATE: "steering rate 2.000 rad/s above max_steering_rate",
 }
 
 

@@ -273,3 +273,52 @@ def test_xml_without_the_extra_says_how_to_install_it(
         cr.load(DATA / "C-DEU_B471-1_3_T-1.xml")
     assert cli_main(["commonroad", str(DATA / "C-DEU_B471-1_3_T-1.xml"), "--quiet"]) == 2
     assert "commonroad-io" in capsys.readouterr().err
+
+
+def test_a_written_solution_of_the_car_is_feasible_for_commonroads_checker(tmp_path: Path) -> None:
+    """``kappa-planner commonroad X.xml --solution`` writes the driven motion of CommonRoad's car (vehicle
+    type 2) as a kinematic single-track solution; commonroad-drivability-checker finds every
+    transition feasible (its position and orientation tolerances, its steering limits). Driven as the
+    point model, the same solution is not: the checker places the rear axle behind the centre along a
+    yaw the point model does not have."""
+    pytest.importorskip("commonroad")
+    pytest.importorskip("commonroad_dc")
+    from commonroad.common.solution import CommonRoadSolutionReader, VehicleModel, VehicleType
+
+    scenario = DATA / "DEU_Moabit-4_1_T-1.xml"  # an urban start: it turns while it brakes behind traffic
+    verdicts = {}
+    for vehicle in ("request", "point"):
+        out = tmp_path / f"{vehicle}.xml"
+        code = cli_main(["commonroad", str(scenario), "--duration", "3", "--quiet", "--vehicle", vehicle,
+                         "--solution", str(out)])  # fmt: skip
+        assert code == 0 and out.exists()
+        solution = CommonRoadSolutionReader.open(str(out))
+        (pp,) = solution.planning_problem_solutions
+        assert (pp.vehicle_model, pp.vehicle_type) == (VehicleModel.KS, VehicleType.BMW_320i)
+        states = pp.trajectory.state_list
+        assert len(states) == 31 and states[0].time_step == 0
+        verdicts[vehicle] = cr.feasible_transitions(states, 0.1)
+    assert all(verdicts["request"]), verdicts["request"]
+    assert not all(verdicts["point"])
+
+
+def test_the_xml_conversion_is_commonroads_car() -> None:
+    pytest.importorskip("commonroad")
+    conv = cr.load(DATA / "C-DEU_B471-1_3_T-1.xml")
+    vehicle = conv.request["vehicle"]
+    assert vehicle["wheelbase"] == pytest.approx(2.578, abs=1e-3)
+    assert vehicle["rear_axle_offset"] == pytest.approx(1.422, abs=1e-3)
+    assert (vehicle["length"], vehicle["width"]) == (4.508, 1.61)
+    assert (vehicle["max_steering_angle"], vehicle["max_steering_rate"]) == (1.066, 0.4)
+    assert cr.point_vehicle(vehicle) == cr.VEHICLE
+    assert (conv.info["dt"], conv.info["initial_time_step"]) == (0.1, 0)
+    problem = problem_from_json(conv.request)
+    assert problem.vehicle.is_car
+    result = plan(problem)
+    assert result.trajectory.steering_angle is not None
+
+
+def test_a_solution_needs_the_xml(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code = cli_main(["commonroad", str(DATA / "DEU_Moabit-4_1_T-1.json"), "--duration", "0.2", "--quiet",
+                     "--solution", str(tmp_path / "s.xml")])  # fmt: skip
+    assert code == 2 and "needs a CommonRoad XML" in capsys.readouterr().err

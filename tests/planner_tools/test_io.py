@@ -48,6 +48,20 @@ def test_reader_round_trips_the_demo() -> None:
     _same(problem_from_json(data), to_problem(PlanningRequest.model_validate(data)))
 
 
+def test_reader_reads_a_car_as_the_http_layer_does() -> None:
+    data = demo_request().model_dump(mode="json")  # the point model's car fields are null
+    assert problem_from_json(data).vehicle.wheelbase is None
+    data["vehicle"].update(wheelbase=2.7, rear_axle_offset=0.0, max_steering_rate=0.4)
+    problem = problem_from_json(data)
+    _same(problem, to_problem(PlanningRequest.model_validate(data)))
+    assert problem.vehicle.is_car and problem.vehicle.max_steering_angle is None
+    _same(problem_from_json(json.loads(json.dumps(problem_to_json(problem)))), problem)
+    data["vehicle"]["rear_axle_offset"] = None
+    with pytest.raises(InvalidInputError) as err:
+        problem_from_json(data)
+    assert err.value.field == "vehicle.rear_axle_offset"
+
+
 def _demo() -> dict[str, Any]:
     return demo_request().model_dump(mode="json")
 

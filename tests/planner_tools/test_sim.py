@@ -255,16 +255,60 @@ def test_transf_kappa_drives_the_u_turn() -> None:
     json.dumps(m.to_dict())
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the planner checks a footprint turned with the path; a car referenced midway between its "
-    "axles is yawed by the slip angle (≈ 10° here), which swings its outer front corner ~0.4 m into the cone",
-)
-def test_a_car_referenced_midway_between_its_axles_drives_the_demo_u_turn() -> None:
+def test_a_car_planned_as_a_car_drives_the_demo_u_turn_clear_of_the_cone() -> None:
+    """The car of ``--centre-midway`` (wheelbase 0.6·length, rear axle midway between the axles, behind
+    the centre) planned as the car it is: its footprint from the rear axle along the yaw."""
+    problem = demo_problem()
+    midway = BicycleModel.for_vehicle(problem.vehicle, centre_midway=True)
+    vehicle = replace(problem.vehicle, wheelbase=midway.wheelbase, rear_axle_offset=midway.rear_to_centre)
+    car = replace(problem, vehicle=vehicle)
+    result = simulate(car)
+    assert result.model.at_rear_axle and result.model.wheelbase == pytest.approx(2.7)
+    m = result.metrics
+    assert m.termination == "goal" and m.collisions == 0
+    assert m.min_clearance is not None and m.min_clearance > 0.2
+    assert m.max_lane_departure < 0.0 and m.max_tracking_error < 0.05
+    assert m.status_counts["ok"] == m.steps
+    assert m.max_lateral_acceleration <= vehicle.max_lateral_acceleration + 0.1
+    # the body is yawed against the centre's path in the turn (no slip at the rear axle)
+    slip = np.abs(np.angle(np.exp(1j * (result.motion.course - result.motion.yaw))))
+    assert slip.max() == 0.0
+    step = np.diff(np.column_stack((result.motion.x, result.motion.y)), axis=0)
+    centre_course = np.arctan2(step[:, 1], step[:, 0])
+    moving = np.hypot(*step.T) > 1e-3
+    yaw_mid = 0.5 * (result.motion.yaw[:-1] + result.motion.yaw[1:])
+    assert np.degrees(np.abs(np.angle(np.exp(1j * (centre_course - yaw_mid))))[moving].max()) > 5.0
+
+
+def test_the_same_car_planned_as_a_point_touches_the_cone() -> None:
+    """What planning the car as a point does: its body is yawed by the slip angle (≈ 10° here), which
+    swings its outer front corner ~0.4 m further out than the point model's footprint, into the cone."""
     problem = demo_problem()
     result = simulate(problem, model=BicycleModel.for_vehicle(problem.vehicle, centre_midway=True))
-    assert result.metrics.termination == "goal"
-    assert result.metrics.collisions == 0
+    assert result.metrics.collisions > 0 and result.metrics.collided_with == ("cone",)
+
+
+def test_a_car_model_takes_the_vehicles_geometry_and_steering() -> None:
+    car = {"wheelbase": 2.578, "rear_axle_offset": 1.422, "max_steering_angle": 1.066}
+    car["max_steering_rate"] = 0.4
+    vehicle = Vehicle(**car)
+    model = BicycleModel.for_vehicle(vehicle)
+    assert (model.wheelbase, model.rear_to_centre, model.max_steering, model.max_steering_rate) == tuple(
+        car.values()
+    )
+    assert model.at_rear_axle and model.slip_angle(0.5) == 0.0
+    assert model.curvature(0.3) == pytest.approx(math.tan(0.3) / 2.578)
+    ratio = float(model.centre_speed_ratio(np.array(0.3)))
+    assert ratio == pytest.approx(math.hypot(1.0, 1.422 * math.tan(0.3) / 2.578))
+    with pytest.raises(InvalidInputError):
+        BicycleModel.for_vehicle(vehicle, centre_midway=True)
+    # on a circle, the centre is placed from the rear axle along the yaw
+    state = initial_state(model, Ego(1.422, 0.0, 0.0, speed=5.0, curvature=0.1), vehicle)
+    for _ in range(100):
+        state = step_exact(model, state, 0.0, state.steering, 0.01)
+    rear = np.array([state.x, state.y]) - 1.422 * np.array([math.cos(state.yaw), math.sin(state.yaw)])
+    assert math.hypot(rear[0], rear[1] - 10.0) == pytest.approx(10.0, abs=1e-9)  # radius 1/κ about (0, 10)
+    assert state.yaw == pytest.approx(5.0 * 1.0 * 0.1) and state.course == state.yaw
 
 
 def test_a_car_from_behind_is_a_collision_and_ends_the_run() -> None:

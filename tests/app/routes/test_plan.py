@@ -26,6 +26,8 @@ from planner.speed import ProfileKind
 from solvers.result import SolveInfo, SolverStatus
 
 TRAJECTORY_KEYS = {"t", "x", "y", "heading", "curvature", "v", "a", "s", "d"}
+#: a car's geometry
+CAR = {"wheelbase": 2.7, "rear_axle_offset": 1.0}
 #: a straight road closed by a wall across it at x = 60 … 62
 BLOCKED: dict[str, Any] = {
     "reference_line": [[0.0, 0.0], [200.0, 0.0]],
@@ -253,3 +255,44 @@ def test_overload_is_a_503_to_retry(demo: dict[str, Any]) -> None:
     r = TestClient(app).post("/v1/plan", json=demo, headers={"X-Request-ID": "busy"})
     assert r.status_code == 503 and r.headers["Retry-After"] == "1" and r.headers["X-Request-ID"] == "busy"
     assert r.json()["error"]["code"] == "overloaded" and "256 plans" in r.json()["error"]["message"]
+
+
+def test_a_car_is_planned_with_its_steering_angle(client: TestClient, demo: dict[str, Any]) -> None:
+    """With a wheelbase every point has its steering angle, atan(wheelbase · curvature); without, none."""
+    car = {**demo, "vehicle": {**demo["vehicle"], "wheelbase": 2.7, "rear_axle_offset": 1.35}}
+    out = _plan(client, car)
+    assert out["status"] == "ok", out["message"]
+    assert all(set(p) == TRAJECTORY_KEYS | {"steering_angle"} for p in out["trajectory"])
+    np.testing.assert_allclose(
+        _column(out, "steering_angle"), np.arctan(2.7 * _column(out, "curvature")), rtol=1e-12, atol=1e-15
+    )
+    first = out["trajectory"][0]
+    assert (first["x"], first["y"]) == pytest.approx((demo["ego"]["x"], demo["ego"]["y"]), abs=1e-6)
+    # the rear axle, 1.35 m behind each point along its heading (the body's yaw), moves along the yaw
+    heading = _column(out, "heading")
+    rear = np.column_stack((_column(out, "x"), _column(out, "y"))) - 1.35 * np.column_stack(
+        (np.cos(heading), np.sin(heading))
+    )
+    step = np.diff(rear, axis=0)
+    off = np.angle(np.exp(1j * (np.arctan2(step[:, 1], step[:, 0]) - 0.5 * (heading[1:] + heading[:-1]))))
+    assert np.abs(off).max() < 0.05
+    assert all(set(p) == TRAJECTORY_KEYS for p in _plan(client, demo)["trajectory"])
+
+
+@pytest.mark.parametrize(
+    ("vehicle", "field"),
+    [
+        ({"wheelbase": 2.7}, "vehicle.rear_axle_offset"),
+        ({"rear_axle_offset": 1.0}, "vehicle.rear_axle_offset"),
+        ({"max_steering_rate": 0.4}, "vehicle.max_steering_rate"),
+        ({"wheelbase": 2.7, "rear_axle_offset": 2.5}, "vehicle.rear_axle_offset"),  # beyond length/2
+        ({**CAR, "max_steering_angle": 2.0}, "vehicle.max_steering_angle"),
+        ({"wheelbase": 0.0, "rear_axle_offset": 1.0}, "vehicle.wheelbase"),
+    ],
+)
+def test_a_car_without_its_geometry_is_a_422_naming_the_field(
+    client: TestClient, demo: dict[str, Any], vehicle: dict[str, float], field: str
+) -> None:
+    r = client.post("/v1/plan", json={**demo, "vehicle": {**demo["vehicle"], **vehicle}})
+    assert r.status_code == 422, r.text
+    assert field in [d["field"] for d in r.json()["error"]["details"]]
