@@ -44,6 +44,9 @@ class LateralConfig:
     knot_spacing: float = 0.5
     #: most knots of the lateral QP
     max_knots: int = 240
+    #: the reference may turn at most this much between two knots [rad]: a longer path is cut where
+    #: ``max_knots`` knots that close end (it would otherwise chord across the road's curves)
+    max_knot_turn: float = 0.25
     #: bounds handed to the QP are tightened by this, covering its tolerance [m]
     qp_slack: float = 0.01
     #: bound on the lateral profile's jerk ``|d‴|`` [1/m²]

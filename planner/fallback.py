@@ -70,7 +70,7 @@ def fallback(
     behind (if it is a solution). ``static`` are the static obstacles' outlines."""
     options = problem.options
     steps, dt = profile_grid(options, config.speed)
-    hold = held_offset(ref, knots(start, float(candidate.s[-1]), config.lateral), start.d)
+    hold = held_offset(ref, knots(ref, start, float(candidate.s[-1]), config.lateral), start.d)
     tried: list[tuple[Trajectory, list[Violation]]] = []
     for option in _distinct(path, candidate, hold):
         profile = braking(option, problem, steps, dt, config.speed)

@@ -34,11 +34,18 @@ from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolve
 from solvers.result import SolveInfo
 
 
-def knots(start: EgoFrenet, s_end: float, config: LateralConfig = DEFAULT_CONFIG.lateral) -> FloatArray:
+def knots(
+    ref: ReferenceLine, start: EgoFrenet, s_end: float, config: LateralConfig = DEFAULT_CONFIG.lateral
+) -> FloatArray:
     """Knots [m] from the ego to ``s_end`` (at least two spacings on), ``knot_spacing`` apart or wider
-    when there would be more than ``max_knots``; at least 3."""
+    when there would be more than ``max_knots``; at least 3. Never so wide that the reference turns by
+    more than ``max_knot_turn`` between two: the knots then end before ``s_end``."""
     s_end = max(s_end, start.s + 2.0 * config.knot_spacing)
     n = int(np.clip(np.ceil((s_end - start.s) / config.knot_spacing) + 1, 3, config.max_knots))
+    span = ref.s[(ref.s >= start.s) & (ref.s <= s_end)]
+    sharpest = float(np.max(np.abs(ref.kappa_at(span)))) if span.size else 0.0
+    if sharpest > 0.0 and (s_end - start.s) / (n - 1) * sharpest > config.max_knot_turn:
+        s_end = start.s + (n - 1) * max(config.max_knot_turn / sharpest, config.knot_spacing)
     return np.linspace(start.s, s_end, n)
 
 
@@ -253,7 +260,7 @@ def lateral_stage(
     """The path along the chosen ``candidate`` (its kept ``(s, d)`` [m]) clear of the static obstacles'
     ``boxes``; the QP gets what ``time_left`` [s] (None: no limit) says is left of the budget."""
     s_c, d_c = candidate
-    at = knots(start, float(s_c[-1]), config.lateral)
+    at = knots(ref, start, float(s_c[-1]), config.lateral)
     d_ref = np.interp(at, s_c, d_c)
     attempt = _attempt(solver, ref, problem, start, at, d_ref, boxes, None, time_left, config)
     if problem.options.lateral_margin > 0.0 and not attempt.better_than_unsolved():

@@ -225,9 +225,10 @@ def trajectory_violations(
     dt = np.diff(t)
     px, py = planned_point(traj.x, traj.y, traj.heading, vehicle)
     step = np.hypot(np.diff(px), np.diff(py))
-    # the chord of an arc of length v·dt that turns by Δθ: v·dt·sin(Δθ/2)/(Δθ/2)
-    expected = 0.5 * (traj.v[:-1] + traj.v[1:]) * dt * np.sinc(0.5 * np.diff(traj.heading) / np.pi)
-    inconsistent = np.abs(step - expected) > _STEP_ABS_TOL + _STEP_REL_TOL * expected
+    # a step of arc length v·dt turning monotonically by Δθ ≤ π has a chord in [v·dt·cos(Δθ/2), v·dt]
+    arc = 0.5 * (traj.v[:-1] + traj.v[1:]) * dt
+    shortest = arc * np.cos(0.5 * np.minimum(np.abs(np.diff(traj.heading)), np.pi))
+    inconsistent = np.maximum(step - arc, shortest - step) > _STEP_ABS_TOL + _STEP_REL_TOL * arc
     if np.any(inconsistent):
         out.append(Violation(kind.STEP, t=_first(t, inconsistent)))
     ds = np.diff(traj.s)

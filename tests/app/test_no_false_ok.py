@@ -1,4 +1,5 @@
-"""No false ``ok``: whatever vehicle and ego a request describes (within the API's limits), an ``ok`` or
+"""No false ``ok``: whatever vehicle (point model or car) and ego a request describes (within the API's
+limits), an ``ok`` or
 ``stopped`` answer passes every check of the independent checker in ``tests/regression/checks.py``
 (positions against the reported ``(s, d)``, heading against the direction of motion, curvature against
 the heading's change, the vehicle's limits, the lane, the obstacles), and a ``fallback`` brakes.
@@ -60,6 +61,15 @@ vehicles = st.fixed_dictionaries(
         "max_curvature": _log_uniform(MIN_VEHICLE_CURVATURE, min(MAX_VEHICLE_CURVATURE, 2.0)),
     }
 )
+#: a car (wheelbase, rear axle behind the centre) or the point model (no wheelbase)
+cars = st.one_of(
+    st.just({}),
+    st.builds(
+        lambda wheelbase, share: {"wheelbase": wheelbase, "rear_axle_offset": share * 2.25},
+        st.floats(1.0, 4.0),
+        st.floats(0.0, 1.0),
+    ),
+)
 egos = st.fixed_dictionaries(
     {
         "speed": st.one_of(st.just(0.0), _log_uniform(0.1, MAX_VEHICLE_SPEED)),
@@ -70,13 +80,22 @@ egos = st.fixed_dictionaries(
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
-    road=st.sampled_from(sorted(ROADS)), vehicle=vehicles, ego=egos, target=st.none() | st.floats(0.0, 60.0)
+    road=st.sampled_from(sorted(ROADS)),
+    vehicle=vehicles,
+    car=cars,
+    ego=egos,
+    target=st.none() | st.floats(0.0, 60.0),
 )
 def test_every_answer_to_an_extreme_vehicle_passes_the_independent_checks(
-    client: TestClient, road: str, vehicle: dict[str, float], ego: dict[str, float], target: float | None
+    client: TestClient,
+    road: str,
+    vehicle: dict[str, float],
+    car: dict[str, float],
+    ego: dict[str, float],
+    target: float | None,
 ) -> None:
     request = copy.deepcopy(ROADS[road])
-    request["vehicle"] = vehicle
+    request["vehicle"] = {**vehicle, **car}
     request["ego"].update(ego)
     request["options"] = {"time_budget_ms": 60_000.0, **({} if target is None else {"target_speed": target})}
     note(f"request options/vehicle/ego: {request['options']} {vehicle} {request['ego']}")

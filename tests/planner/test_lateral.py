@@ -31,6 +31,8 @@ from planner.ego import EgoFrenet
 from planner.lateral import curvature_allowance, knots
 from planner.pipeline import plan
 from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
+from planner.reference import build_reference
+from planner.roads import straight, u_turn
 from planner_tools.io import problem_from_json
 from planner_tools.sim import shift_obstacle
 from solvers.result import SolverStatus
@@ -60,14 +62,27 @@ START = EgoFrenet(s=10.0, d=0.0, dd=0.0, ddd=0.0, heading_error=0.0)
 
 def test_knots_are_the_spacing_apart_up_to_their_most_and_at_least_three() -> None:
     config = DEFAULT_CONFIG.lateral
-    at = knots(START, 60.0, config)
+    line = build_reference(straight(10_100.0, step=50.0))
+    at = knots(line, START, 60.0, config)
     assert at[0] == 10.0 and at[-1] == 60.0
     np.testing.assert_allclose(np.diff(at), config.knot_spacing)
-    assert knots(START, 10.2, config).tolist() == [10.0, 10.5, 11.0]  # at least two spacings on
-    far = knots(START, 10_000.0, config)
+    assert knots(line, START, 10.2, config).tolist() == [10.0, 10.5, 11.0]  # at least two spacings on
+    far = knots(line, START, 10_000.0, config)
     assert far.size == config.max_knots and far[-1] == 10_000.0
-    assert knots(START, 60.0, LateralConfig(knot_spacing=20.0)).size == 4
-    assert knots(START, 10.0, LateralConfig(knot_spacing=20.0)).size == 3
+    assert knots(line, START, 60.0, LateralConfig(knot_spacing=20.0)).size == 4
+    assert knots(line, START, 10.0, LateralConfig(knot_spacing=20.0)).size == 3
+
+
+def test_knots_never_chord_across_a_curve() -> None:
+    """On a road with a 4 m hairpin, knots for a 2 km path would be 8 m apart: they end where
+    ``max_knots`` knots that turn the reference by ``max_knot_turn`` each end."""
+    config = DEFAULT_CONFIG.lateral
+    hairpin = build_reference(u_turn(radius=4.0, leg=1000.0, step=0.5))
+    at = knots(hairpin, START, 2000.0, config)
+    assert at.size == config.max_knots
+    spacing = float(at[1] - at[0])
+    assert spacing * 0.25 <= config.max_knot_turn + 1e-9  # κ = 1/4 1/m
+    assert at[-1] < 2000.0
 
 
 def test_the_curvature_bound_is_the_vehicles_within_what_the_speed_allows() -> None:

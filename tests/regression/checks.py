@@ -86,12 +86,13 @@ def shape_problems(request: PlanningRequest, answer: Any) -> list[str]:
     points = answer.get("trajectory")
     if not isinstance(points, list) or len(points) < 2:
         return [*out, "trajectory is not a list of at least two points"]
+    fields = _fields(request)
     for i, p in enumerate(points):
-        if not isinstance(p, dict) or set(p) != set(TRAJECTORY_FIELDS):
+        if not isinstance(p, dict) or set(p) != set(fields):
             keys = sorted(p) if isinstance(p, dict) else type(p).__name__
-            out.append(f"trajectory[{i}] has keys {keys}, expected {sorted(TRAJECTORY_FIELDS)}")
+            out.append(f"trajectory[{i}] has keys {keys}, expected {sorted(fields)}")
             break
-        bad = [f for f in TRAJECTORY_FIELDS if not _number(p[f])]
+        bad = [f for f in fields if not _number(p[f])]
         if bad:
             out.append(f"trajectory[{i}] has non-numbers or non-finite numbers in {bad}")
             break
@@ -100,10 +101,26 @@ def shape_problems(request: PlanningRequest, answer: Any) -> list[str]:
     return out
 
 
+def _fields(request: PlanningRequest) -> tuple[str, ...]:
+    """The keys of a trajectory point: a car's (a vehicle with a wheelbase) has its steering angle too."""
+    return (
+        (*TRAJECTORY_FIELDS, "steering_angle") if request.vehicle.wheelbase is not None else TRAJECTORY_FIELDS
+    )
+
+
 def trajectory_of(answer: dict[str, Any]) -> Trajectory:
     """The trajectory of a well-shaped answer as arrays."""
     points = answer["trajectory"]
-    return Trajectory(**{f: np.array([p[f] for p in points], dtype=float) for f in TRAJECTORY_FIELDS})
+    fields = [f for f in (*TRAJECTORY_FIELDS, "steering_angle") if f in points[0]]
+    return Trajectory(**{f: np.array([p[f] for p in points], dtype=float) for f in fields})
+
+
+def planned_point(problem: PlanningProblem, traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Where the kinematics apply: the centre, or a car's rear axle ``rear_axle_offset`` behind it along
+    the yaw (its path's heading and curvature are the answer's)."""
+    car = problem.vehicle.wheelbase is not None
+    offset = float(problem.vehicle.rear_axle_offset or 0.0) if car else 0.0
+    return traj.x - offset * np.cos(traj.heading), traj.y - offset * np.sin(traj.heading)
 
 
 def _at(traj: Trajectory, i: int) -> str:
@@ -127,15 +144,18 @@ def common_problems(request: PlanningRequest, problem: PlanningProblem, traj: Tr
         out.append(f"ends at t = {traj.t[-1]:.3f} s, not within options.dt of {opts.horizon_time} s")
     if np.any(traj.v < 0.0):
         out.append(f"negative speed at {_at(traj, int(np.argmin(traj.v)))}")
-    step = np.hypot(np.diff(traj.x), np.diff(traj.y))
-    # the chord of an arc of length v·dt turning by Δθ is v·dt · sin(Δθ/2)/(Δθ/2)
-    half_turn = 0.5 * np.diff(traj.heading)
-    expected = 0.5 * (traj.v[:-1] + traj.v[1:]) * dt * np.sinc(half_turn / np.pi)
-    err = np.abs(step - expected) - (STEP_ABS_TOL + STEP_REL_TOL * expected)
+    px, py = planned_point(problem, traj)
+    step = np.hypot(np.diff(px), np.diff(py))
+    # a step of arc length v·dt whose heading turns monotonically by Δθ ≤ π has a chord between
+    # v·dt·cos(Δθ/2) and v·dt (every tangent within Δθ/2 of the chord's direction)
+    arc = 0.5 * (traj.v[:-1] + traj.v[1:]) * dt
+    shortest = arc * np.cos(0.5 * np.minimum(np.abs(np.diff(traj.heading)), np.pi))
+    tolerance = STEP_ABS_TOL + STEP_REL_TOL * arc
+    err = np.maximum(step - arc, shortest - step) - tolerance
     if np.any(err > 0):
         i = int(np.argmax(err))
         out.append(
-            f"step {i}→{i + 1} moves {step[i]:.3f} m but the mean speed × dt makes {expected[i]:.3f} m "
+            f"step {i}→{i + 1} moves {step[i]:.3f} m but the mean speed × dt makes {arc[i]:.3f} m "
             f"at {_at(traj, i)}"
         )
     return out
@@ -166,7 +186,8 @@ def full_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
     if np.any(traj.v > vmax):
         out.append(f"speed {traj.v.max():.2f} m/s above max_speed {veh.max_speed} m/s")
 
-    dx, dy = np.diff(traj.x), np.diff(traj.y)
+    px, py = planned_point(problem, traj)  # a car's rear axle moves along its yaw
+    dx, dy = np.diff(px), np.diff(py)
     motion = np.arctan2(dy, dx)
     dh = np.angle(np.exp(1j * np.diff(traj.heading)))
     mid = traj.heading[:-1] + 0.5 * dh
@@ -185,6 +206,19 @@ def full_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
             f"the heading turns {dh[i]:.3f} rad over {length[i]:.2f} m but the reported curvature makes "
             f"{turned[i]:.3f} rad at {_at(traj, i)}"
         )
+
+    wheelbase = veh.wheelbase
+    if wheelbase is not None and traj.steering_angle is not None:  # δ = atan(W κ), within its limit
+        delta = np.arctan(wheelbase * traj.curvature)
+        if np.any(np.abs(delta - traj.steering_angle) > 1e-6):
+            out.append("the steering angle is not atan(wheelbase × curvature)")
+        limit = (
+            veh.max_steering_angle
+            if veh.max_steering_angle is not None
+            else np.arctan(wheelbase * veh.max_curvature)
+        )
+        if np.any(np.abs(traj.steering_angle) > limit * (1 + REL_TOL) + 1e-4):
+            out.append(f"steering angle {np.abs(traj.steering_angle).max():.3f} rad above {limit:.3f} rad")
 
     fr = to_frenet(ref, np.column_stack((traj.x, traj.y)))
     for name, mine, theirs in (("s", fr.s, traj.s), ("d", fr.d, traj.d)):
