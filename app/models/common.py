@@ -80,6 +80,7 @@ ReferencePolyline = Annotated[
     Field(
         min_length=MIN_REFERENCE_POINTS,
         max_length=MAX_REFERENCE_POINTS,
+        fail_fast=True,
         description=(
             "Reference polyline [[x, y], …] [m] in driving order: at least two distinct points, "
             f"at most {MAX_REFERENCE_LENGTH:.0f} m long, never turning straight back (180°)."

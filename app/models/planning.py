@@ -19,6 +19,7 @@ from app.limits import (
     MAX_ID_LENGTH,
     MAX_LANE_WIDTH,
     MAX_OBSTACLE_OUTLINE,
+    MAX_OBSTACLE_POINTS,
     MAX_OBSTACLE_SIZE,
     MAX_OBSTACLES,
     MAX_PLAN_HORIZON,
@@ -78,7 +79,7 @@ def _width_kind(value: Any) -> str | None:
 
 
 LaneWidth = Annotated[
-    Annotated[Width, Tag(SCALAR_WIDTH)] | Annotated[list[Width], Tag(PER_POINT_WIDTH)],
+    Annotated[Width, Tag(SCALAR_WIDTH)] | Annotated[list[Width], Field(fail_fast=True), Tag(PER_POINT_WIDTH)],
     Discriminator(
         _width_kind,
         custom_error_type="width_type",
@@ -102,6 +103,7 @@ class PolygonObstacle(RequestModel):
     polygon: list[Point] = Field(
         min_length=MIN_POLYGON_POINTS,
         max_length=MAX_POLYGON_POINTS,
+        fail_fast=True,
         description=f"Outline [[x, y], …] [m], at least {MIN_POLYGON_POINTS} points enclosing a nonzero "
         "area.",
     )
@@ -153,6 +155,7 @@ class DynamicObstacle(RequestModel):
     prediction: list[PredictedState] = Field(
         min_length=1,
         max_length=MAX_PREDICTION_STATES,
+        fail_fast=True,
         description="Predicted states, t strictly increasing.",
     )
 
@@ -353,7 +356,8 @@ class PlanningRequest(RequestModel):
         default_factory=list,
         max_length=MAX_OBSTACLES,
         description="Obstacles, ids unique, their outlines at most "
-        f"{MAX_OBSTACLE_OUTLINE:.0f} m long in all.",
+        f"{MAX_OBSTACLE_OUTLINE:.0f} m long in all, at most {MAX_OBSTACLE_POINTS} polygon vertices "
+        "and predicted states in all.",
     )
     ego: Ego
     vehicle: Vehicle = Field(default_factory=Vehicle)
@@ -369,6 +373,17 @@ class PlanningRequest(RequestModel):
                     (i, "id"), "duplicate_id", "another obstacle has this id", obstacle.id
                 )
             seen.add(obstacle.id)
+        points = sum(
+            len(o.polygon) if isinstance(o, PolygonObstacle) else len(o.prediction)
+            for o in obstacles
+            if not isinstance(o, CircleObstacle)
+        )
+        if points > MAX_OBSTACLE_POINTS:
+            raise PydanticCustomError(
+                "obstacles_too_many_points",
+                f"the obstacles have {points} polygon vertices and predicted states in all; "
+                f"at most {MAX_OBSTACLE_POINTS} are accepted",
+            )
         total = sum(_outline_length(o) for o in obstacles)
         if total > MAX_OBSTACLE_OUTLINE:
             raise PydanticCustomError(

@@ -12,7 +12,7 @@ from typing import Any
 import httpx
 import pytest
 
-from app.executor import Overloaded, PlanExecutor
+from app.executor import Overloaded, PlanExecutor, ProcessDied
 from app.main import create_app
 from app.settings import Settings
 
@@ -46,11 +46,11 @@ async def test_a_dead_pool_process_fails_its_call_and_the_pool_is_renewed() -> N
     executor = PlanExecutor(processes=1, max_pending=4)
     await executor.start()
     try:
-        with pytest.raises(Exception, match="terminated abruptly"):
+        with pytest.raises(ProcessDied, match="died before it answered"):
             await executor.run(os._exit, 3)
         assert await executor.run(abs, -2) == 2
     finally:
-        executor.shutdown()
+        await executor.shutdown()
 
 
 @pytest.mark.anyio

@@ -17,6 +17,8 @@ from app.models.plan import STAGES
 from app.settings import Settings
 from tests.app.helpers import fail_candidates
 
+JSON = {"content-type": "application/json"}
+
 
 def _uuid4(value: str) -> bool:
     try:
@@ -53,10 +55,10 @@ def test_every_error_answer_has_a_request_id(
     answers = [
         client.get("/v1/nowhere", headers={"X-Request-ID": "r404"}),
         client.put("/v1/plan", headers={"X-Request-ID": "r405"}),
-        client.post("/v1/plan", content=b"{", headers={"X-Request-ID": "r422"}),
+        client.post("/v1/plan", content=b"{", headers={"X-Request-ID": "r422", **JSON}),
     ]
     small = TestClient(create_app(Settings(max_body_bytes=2048)))
-    answers.append(small.post("/v1/plan", content=b" " * 4096, headers={"X-Request-ID": "r413"}))
+    answers.append(small.post("/v1/plan", content=b" " * 4096, headers={"X-Request-ID": "r413", **JSON}))
 
     fail_candidates(monkeypatch, ZeroDivisionError("internals"))
     answers.append(client.post("/v1/candidates", json=demo, headers={"X-Request-ID": "r500"}))
@@ -94,8 +96,8 @@ def test_one_json_line_per_request(client: TestClient, caplog: pytest.LogCapture
 def test_a_request_refused_before_routing_is_labelled_by_its_route(caplog: pytest.LogCaptureFixture) -> None:
     small = TestClient(create_app(Settings(max_body_bytes=2048)))
     with caplog.at_level(logging.INFO, logger="app.access"):
-        assert small.post("/v1/plan", content=b" " * 4096).status_code == 413
-        assert small.post("/v1/nowhere", content=b" " * 4096).status_code == 413
+        assert small.post("/v1/plan", content=b" " * 4096, headers=JSON).status_code == 413
+        assert small.post("/v1/nowhere", content=b" " * 4096, headers=JSON).status_code == 413
     first, second = _lines(caplog, "app.access")
     assert (first["route"], first["status"]) == ("/v1/plan", 413)
     assert (second["route"], second["status"]) == ("unmatched", 413)
@@ -132,26 +134,43 @@ def test_an_unexpected_error_is_logged_with_its_request_id(
     assert (line["status"], line["level"], line["request_id"]) == (500, "error", "boom")
 
 
-def test_demo_pipes_into_curl_without_a_content_type(client: TestClient) -> None:
-    """`curl …/v1/demo | curl -X POST …/v1/candidates -d @-` sends a form Content-Type."""
+@pytest.mark.parametrize(
+    "headers",
+    [
+        {"content-type": "application/x-www-form-urlencoded"},  # a form of any web page, or `curl -d`
+        {"content-type": "text/plain"},
+        {"content-type": "multipart/form-data; boundary=x"},
+        {},  # a browser's Blob without a type
+        {"content-type": "application/json", "content-encoding": "gzip"},
+    ],
+)
+def test_a_body_that_is_not_plain_json_is_415(client: TestClient, headers: dict[str, str]) -> None:
     raw = client.get("/v1/demo").content
-    for content_type in ("application/x-www-form-urlencoded", "text/plain", None):
-        headers = {"content-type": content_type} if content_type else {}
-        r = client.post("/v1/candidates", content=raw, headers=headers)
+    r = client.post("/v1/candidates", content=raw, headers=headers)
+    assert r.status_code == 415 and r.json()["error"]["code"] == "unsupported_media_type"
+    assert set(r.json()) == {"error"}
+
+
+def test_a_json_body_with_parameters_is_read(client: TestClient) -> None:
+    raw = client.get("/v1/demo").content
+    for content_type in ("application/json", "Application/JSON; charset=utf-8"):
+        r = client.post("/v1/candidates", content=raw, headers={"content-type": content_type})
         assert r.status_code == 200, (content_type, r.text)
+    r = client.post("/v1/candidates", content=raw, headers={**JSON, "content-encoding": "identity"})
+    assert r.status_code == 200
 
 
 def test_body_too_large() -> None:
     small = TestClient(create_app(Settings(max_body_bytes=2048)))
     body = json.dumps({"reference_line": [[i, 0] for i in range(400)], "points": [[0, 0]]})
-    r = small.post("/v1/frenet", content=body)  # declared Content-Length
+    r = small.post("/v1/frenet", content=body, headers=JSON)  # declared Content-Length
     assert r.status_code == 413 and r.json()["error"]["code"] == "payload_too_large"
 
     def chunks() -> Any:
         yield body[:1500].encode()
         yield body[1500:].encode()
 
-    r = small.post("/v1/frenet", content=chunks())  # streamed, no Content-Length
+    r = small.post("/v1/frenet", content=chunks(), headers=JSON)  # streamed, no Content-Length
     assert r.status_code == 413 and r.json()["error"]["code"] == "payload_too_large"
     assert (
         small.post(

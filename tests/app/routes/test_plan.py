@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+from app import jobs as plan_route
 from app.deps import get_plan_executor
 from app.executor import Overloaded, PlanExecutor
 from app.main import app, create_app
 from app.models.plan import STAGES, PlanResponse
-from app.routes import plan as plan_route
 from app.settings import Settings
 from planner.pipeline import plan
 from solvers.result import SolveInfo, SolverStatus
@@ -221,17 +221,30 @@ def test_answers_match_the_openapi_schema(client: TestClient, demo: dict[str, An
         _check(_plan(client, body), schema, components, "answer")
 
 
-def test_time_budget_from_the_request_or_the_server_default(demo: dict[str, Any]) -> None:
-    from app.main import create_app
-    from app.settings import Settings
+def test_the_budget_counts_from_the_arrival(demo: dict[str, Any], monkeypatch: pytest.MonkeyPatch) -> None:
+    """The planner gets what remains of the request's budget (the request's own, else the server's) once
+    the request has waited; a budget gone before the plan can start is a 503 to retry."""
+    budgets: list[float] = []
 
+    def recording(problem: Any) -> Any:
+        budgets.append(problem.options.time_budget_ms)
+        return plan(problem)
+
+    monkeypatch.setattr(plan_route, "plan", recording)
     tight = TestClient(create_app(Settings(plan_processes=0, time_budget_ms=1.0)))
     with tight:
-        answer = tight.post("/v1/plan", json=demo).json()  # the server's 1 ms default
-        assert answer["status"] == "fallback" and "time budget of 1 ms spent" in answer["message"]
-        assert answer["trajectory"][-1]["v"] == pytest.approx(0.0, abs=1e-9)
+        r = tight.post("/v1/plan", json=demo)  # the server's 1 ms: spent before the plan starts
+        assert r.status_code == 503 and r.headers["Retry-After"] == "1"
+        assert r.json()["error"]["code"] == "deadline_exceeded" and not budgets
+        assert "total;dur=" in r.headers["Server-Timing"]
         demo["options"]["time_budget_ms"] = 10_000.0  # the request's own budget wins
-        assert tight.post("/v1/plan", json=demo).json()["status"] == "ok"
+        out = _plan(tight, demo)
+        assert out["status"] == "ok"
+        spent = out["diagnostics"]["request"]
+        assert spent["budget_ms"] == 10_000.0 and spent["waited_ms"] > 0.0
+        (given,) = budgets
+        assert given == pytest.approx(10_000.0 - spent["waited_ms"], abs=0.01)
+        assert spent["ran_ms"] >= out["diagnostics"]["timing_ms"]["total"]
         demo["options"]["time_budget_ms"] = 0.0
         r = tight.post("/v1/plan", json=demo)
         assert r.status_code == 422
@@ -239,7 +252,7 @@ def test_time_budget_from_the_request_or_the_server_default(demo: dict[str, Any]
 
 
 class _FullExecutor(PlanExecutor):
-    async def run(self, fn: Any, arg: Any) -> Any:
+    async def run(self, fn: Any, arg: Any, deadline: float | None = None) -> Any:
         raise Overloaded("256 plans are queued or running")
 
 
