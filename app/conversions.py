@@ -53,7 +53,7 @@ def _obstacle_to_problem(o: AnyObstacle) -> pp.Obstacle:
         return pp.CircleObstacle(
             id=o.id, center=np.asarray(o.circle.center, dtype=float), radius=o.circle.radius
         )
-    states = np.array([[p.t, p.x, p.y, p.heading] for p in o.prediction], dtype=float)
+    states = np.array([[p["t"], p["x"], p["y"], p["heading"]] for p in o.prediction], dtype=float)
     return pp.DynamicObstacle(id=o.id, length=o.length, width=o.width, prediction=states)
 
 
