@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from app.logs import server_log_config
-from app.settings import Settings
+from app.settings import SUPERVISOR_ENV, Settings
 
 #: prometheus-client's multiprocess directory (see app.metrics; not imported here, so that the
 #: variable is set before prometheus-client is imported anywhere)
@@ -40,6 +40,9 @@ MULTIPROC_ENV = "PROMETHEUS_MULTIPROC_DIR"
 RSS_SAMPLE_INTERVAL_S = 5
 #: connections waiting to be accepted (the kernel's listen backlog)
 BACKLOG = 2048
+#: of ``KAPPA_SHUTDOWN_TIMEOUT``, what is left for the supervisor's own exit once it killed a worker that
+#: did not stop in time (granian's takes about 1.5 s here) [s]
+SUPERVISOR_EXIT_S = 2.0
 
 
 def prepare_multiprocess_metrics() -> Path | None:
@@ -93,7 +96,7 @@ def server_options(settings: Settings) -> dict[str, Any]:
         "respawn_failed_workers": True,
         "workers_max_rss": settings.max_process_rss_mb,
         "rss_sample_interval": RSS_SAMPLE_INTERVAL_S,
-        "workers_kill_timeout": max(1, math.ceil(settings.shutdown_timeout)),
+        "workers_kill_timeout": max(1, math.floor(settings.shutdown_timeout - SUPERVISOR_EXIT_S)),
     }
 
 
@@ -112,6 +115,7 @@ def main() -> None:
     from granian.server import Server
 
     settings = Settings()
+    os.environ[SUPERVISOR_ENV] = str(os.getpid())  # the workers die with this process
     raise_open_files_limit()
     made = prepare_multiprocess_metrics()
     multiprocessing.set_start_method("spawn", force=True)

@@ -92,7 +92,11 @@ async def compute(request: Request, kind: Kind, settings: Settings, executor: Pl
     try:
         outcome: Outcome = await executor.run(run_job, job, deadline=arrived + budget_ms / 1e3)
     except (Overloaded, DeadlineExceeded, ProcessDied, ShuttingDown) as exc:
-        return _timing(_unavailable(_REFUSALS[type(exc)], f"{exc}; retry later."), arrived)
+        refusal = ShuttingDown if executor.closing else type(exc)  # a process cut at shutdown
+        response = _unavailable(_REFUSALS[refusal], f"{exc}; retry later.")
+        if executor.closing:
+            response.headers["Connection"] = "close"
+        return _timing(response, arrived)
     except RequestError as exc:
         if exc.status != 503:
             raise

@@ -115,9 +115,7 @@ class RequestError(Exception):
     """A request the service cannot use, as the answer says it: status, code, message and
     ``(field, message)`` details. Picklable: it crosses from a plan process to the worker."""
 
-    def __init__(
-        self, status: int, code: str, message: str, details: Sequence[tuple[str, str]] = ()
-    ) -> None:
+    def __init__(self, status: int, code: str, message: str, details: Sequence[tuple[str, str]] = ()) -> None:
         super().__init__(status, code, message, list(details))
         self.status, self.code, self.message = status, code, message
         self.details: list[tuple[str, str]] = list(details)

@@ -21,8 +21,9 @@ Each plan process is a :class:`~concurrent.futures.ProcessPoolExecutor` of one p
 Admission is bounded twice: at most ``max_pending`` calls are queued or running (:exc:`Overloaded`
 beyond), and a call that finds no free process before its ``deadline`` is refused
 (:exc:`DeadlineExceeded`) rather than started too late. Waiting callers are served first come, first
-served. :meth:`PlanExecutor.shutdown` is bounded: calls still running at its timeout are cut (their
-processes killed, :exc:`ProcessDied`).
+served. Stopping is bounded: :meth:`PlanExecutor.drain` (on SIGTERM) refuses new calls and cuts the
+ones still running after a timeout (their processes killed, :exc:`ProcessDied`);
+:meth:`PlanExecutor.shutdown` does the same at the end of the lifespan.
 
 ``processes = 0``, or an executor never started (an app whose lifespan did not run, such as a
 ``TestClient`` not used as a context manager), runs the work in a thread of the worker itself, one call
@@ -80,8 +81,9 @@ class ShuttingDown(Exception):
     """The executor is stopping and takes no new call."""
 
 
-def _die_with_parent(parent: int) -> None:
-    """Have the kernel kill this process when ``parent`` dies (Linux; elsewhere nothing)."""
+def die_with_parent(parent: int) -> None:
+    """Have the kernel kill this process when ``parent`` (its parent) dies (Linux; elsewhere nothing);
+    exit at once if it is dead already."""
     if not sys.platform.startswith("linux"):
         return
     with contextlib.suppress(OSError, AttributeError):
@@ -95,7 +97,7 @@ def _process_init(setup: Callable[[], Any] | None, parent: int) -> None:
     """First thing in each plan process: die with the worker, leave SIGINT and SIGTERM to it (which
     stops the processes), lower its priority by :data:`PLAN_NICENESS`, then ``setup`` (a failure is
     logged: the process serves all the same)."""
-    _die_with_parent(parent)
+    die_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     with contextlib.suppress(OSError, AttributeError):
@@ -345,30 +347,50 @@ class PlanExecutor:
             return False
         return True
 
-    async def shutdown(self, timeout: float = 0.0) -> None:
-        """Stop: take no new call, let the running ones finish for up to ``timeout`` s, then kill the
-        processes (calls still running get :exc:`ProcessDied`) and wake the waiting callers
-        (:exc:`ShuttingDown`)."""
-        if not self._slots:
-            self._closing = True
+    def drain(self, timeout: float) -> None:
+        """Begin stopping (the service got SIGTERM): take no new call, and in ``timeout`` s kill the
+        processes of the calls still running (their callers get :exc:`ProcessDied`, answered 503)
+        — so that every request in flight is answered before the server's own deadline."""
+        if self._closing:
             return
         self._closing = True
-        running = [slot.future for slot in self._slots if slot.future is not None]
-        if running and timeout > 0:
-            await asyncio.wait([asyncio.wrap_future(f) for f in running], timeout=timeout)
+        if self._loop is not None and self._slots:
+            self._loop.call_later(timeout, self._cut)
+        self._wake_waiters()
+        logger.info("draining", extra={"cut_after_s": timeout, "pending": self.pending})
+
+    def _wake_waiters(self) -> None:
+        """Wake every caller waiting for a process: each finds the executor closing (:exc:`ShuttingDown`)."""
+        if self._idle is None or not self._slots:
+            return
+        for _ in range(self.pending):
+            self._idle.put_nowait(self._slots[0])
+
+    def _cut(self) -> None:
         for slot in self._slots:
             if slot.future is not None and not slot.future.done():
                 logger.warning("cutting a call at shutdown", extra={"slot": slot.index})
+                _kill(slot.pool)
+
+    async def shutdown(self, timeout: float = 0.0) -> None:
+        """Stop: take no new call and wake the waiting callers (:exc:`ShuttingDown`), let the running
+        calls finish for up to ``timeout`` s, then kill the processes (calls still running get
+        :exc:`ProcessDied`)."""
+        self._closing = True
+        if not self._slots:
+            return
+        self._wake_waiters()
+        running = [slot.future for slot in self._slots if slot.future is not None]
+        if running and timeout > 0:
+            await asyncio.wait([asyncio.wrap_future(f) for f in running], timeout=timeout)
+        self._cut()
+        for slot in self._slots:
             _kill(slot.pool)
             slot.pool.shutdown(wait=False, cancel_futures=True)
             slot.state = "stopped"
         for task in list(self._background):
             task.cancel()
-        # wake every waiting caller: each finds the executor closing
-        assert self._idle is not None
-        waiters = self.pending
-        for slot in self._slots[:1] * waiters:
-            self._idle.put_nowait(slot)
+        self._wake_waiters()
         self._slots = []
 
 

@@ -9,8 +9,13 @@ the planner in :mod:`app.conversions`), settings in :mod:`app.settings`, where p
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator
+import asyncio
+import contextlib
+import os
+import signal
+from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
+from types import FrameType
 from typing import Any
 
 from fastapi import FastAPI
@@ -21,7 +26,7 @@ from starlette.routing import BaseRoute, Route
 from app import __version__
 from app.docs import install_docs
 from app.errors import install_error_handlers
-from app.executor import PlanExecutor
+from app.executor import PlanExecutor, die_with_parent
 from app.jobs import warm_up
 from app.logs import configure_logging
 from app.middleware import (
@@ -35,10 +40,28 @@ from app.middleware import (
 from app.openapi import document
 from app.routes import metrics as metrics_route
 from app.routes import routers
-from app.settings import Settings
+from app.settings import SUPERVISOR_ENV, Settings
 
-#: of ``KAPPA_SHUTDOWN_TIMEOUT``, what is kept for cutting the plans still running and answering them [s]
-SHUTDOWN_MARGIN_S = 1.0
+#: of ``KAPPA_SHUTDOWN_TIMEOUT``, what is left after the plans still running are cut: answering them,
+#: the worker's exit (granian kills it ``WORKER_EXIT_MARGIN_S`` before the end) and the supervisor's [s]
+SHUTDOWN_MARGIN_S = 3.0
+
+
+def _on_sigterm(callback: Callable[[], object]) -> None:
+    """Call ``callback`` (in the event loop's thread) when the process gets SIGTERM, then whatever
+    handled SIGTERM before (the server's graceful stop): the Python-level handler is chained; an
+    event loop's own handler, which wakes through its wakeup fd, runs as well."""
+    previous = signal.getsignal(signal.SIGTERM)
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        callback()
+        if callable(previous):
+            previous(signum, frame)
+
+    with contextlib.suppress(ValueError):  # not the main thread: no signal handling here
+        signal.signal(signal.SIGTERM, handler)
+
+
 OPENAPI_URL = "/openapi.json"
 
 DESCRIPTION = """\
@@ -76,11 +99,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the application with ``settings`` (default: from the environment).
 
     Its lifespan starts the plan processes (each plans the demo once before it takes a request) and
-    stops them within ``KAPPA_SHUTDOWN_TIMEOUT``; without the lifespan, the work runs in a thread
-    (:mod:`app.executor`).
+    stops them: from SIGTERM, new work is refused (503) and plans still running
+    ``KAPPA_SHUTDOWN_TIMEOUT`` − :data:`SHUTDOWN_MARGIN_S` later are cut (503), so that every request
+    is answered before the server kills a worker that has not stopped (:mod:`app.__main__`). Without
+    the lifespan, the work runs in a thread (:mod:`app.executor`). A worker of ``python -m app`` dies
+    with it.
     """
     settings = settings or Settings()
     configure_logging(settings.log_level)
+    supervisor = os.environ.get(SUPERVISOR_ENV, "")
+    if supervisor.isdigit() and int(supervisor) == os.getppid():  # a worker of `python -m app`
+        die_with_parent(int(supervisor))
     executor = PlanExecutor(
         settings.plan_pool_size(),
         settings.max_pending_plans,
@@ -89,13 +118,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         max_rss_bytes=settings.max_process_rss_mb * 1024 * 1024,
     )
 
+    drain_after = max(0.0, settings.shutdown_timeout - SHUTDOWN_MARGIN_S)
+
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         await executor.start()
+        loop = asyncio.get_running_loop()
+        _on_sigterm(lambda: loop.call_soon_threadsafe(executor.drain, drain_after))
         try:
             yield
         finally:
-            await executor.shutdown(max(0.0, settings.shutdown_timeout - SHUTDOWN_MARGIN_S))
+            await executor.shutdown(drain_after)
 
     app = FastAPI(
         title="kappa-planner",

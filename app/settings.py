@@ -17,6 +17,9 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from app.limits import MAX_BODY_BYTES, MAX_TIME_BUDGET_MS, MIN_TIME_BUDGET_MS
 
+#: set by ``python -m app`` to its own pid, for its workers: a worker it supervises dies with it
+SUPERVISOR_ENV = "KAPPA_SUPERVISOR_PID"
+
 LogLevel = Literal["critical", "error", "warning", "info", "debug"]
 
 
@@ -99,10 +102,10 @@ class Settings(BaseSettings):
     )
     shutdown_timeout: float = Field(
         8.0,
-        ge=1.0,
+        ge=4.0,
         le=3600,
-        description="Longest graceful stop [s]: plans still running 1 s before it are cut with 503, and a "
-        "worker still alive at it is killed.",
+        description="Longest stop from SIGTERM [s]: new work is refused at once (503), plans still running "
+        "3 s before it are cut (503), a worker still alive 2 s before it is killed.",
     )
     max_process_rss_mb: int = Field(
         500,

@@ -17,7 +17,7 @@ class FrenetRequest(RequestModel):
         min_length=1,
         max_length=MAX_QUERY_POINTS,
         fail_fast=True,
-        description="Cartesian points [[x, y], …] [m]."
+        description="Cartesian points [[x, y], …] [m].",
     )
 
 
@@ -36,7 +36,7 @@ class CartesianRequest(RequestModel):
         min_length=1,
         max_length=MAX_QUERY_POINTS,
         fail_fast=True,
-        description="Frenet points [[s, d], …] [m]."
+        description="Frenet points [[s, d], …] [m].",
     )
 
 

@@ -57,7 +57,7 @@ def test_python_m_app_reads_the_environment(
     assert call["log_access"] is False
     http1 = call["http1_settings"]
     assert (http1.header_read_timeout, http1.max_buffer_size, http1.keep_alive) == (2500, 16384, True)
-    assert call["backpressure"] == 77 and call["workers_kill_timeout"] == 7
+    assert call["backpressure"] == 77 and call["workers_kill_timeout"] == 4  # 2 s before the 6.5 s
     assert call["workers_max_rss"] == 400 and call["respawn_failed_workers"] is True
     # one metrics directory for every worker, made before they start, removed after
     assert call["multiproc_dir"] and not Path(call["multiproc_dir"]).exists()
