@@ -40,6 +40,8 @@ MULTIPROC_ENV = "PROMETHEUS_MULTIPROC_DIR"
 RSS_SAMPLE_INTERVAL_S = 5
 #: connections waiting to be accepted (the kernel's listen backlog)
 BACKLOG = 2048
+#: open files a worker keeps for itself beyond its connections (plan processes' pipes, logs, libraries)
+RESERVED_FILES = 128
 #: of ``KAPPA_SHUTDOWN_TIMEOUT``, what is left for the supervisor's own exit once it killed a worker that
 #: did not stop in time (granian's takes about 1.5 s here) [s]
 SUPERVISOR_EXIT_S = 2.0
@@ -69,8 +71,14 @@ def raise_open_files_limit() -> int:
     return soft
 
 
-def server_options(settings: Settings) -> dict[str, Any]:
-    """The options of granian's ``Server`` for ``settings``."""
+def connection_cap(settings: Settings, open_files: int) -> int:
+    """Connections a worker serves at once: ``KAPPA_MAX_CONNECTIONS``, but no more than the open-files
+    limit allows (a connection past it would fail to be accepted rather than wait in the backlog)."""
+    return max(1, min(settings.max_connections, open_files - RESERVED_FILES))
+
+
+def server_options(settings: Settings, open_files: int = 1 << 20) -> dict[str, Any]:
+    """The options of granian's ``Server`` for ``settings`` and a limit of ``open_files``."""
     from granian.constants import HTTPModes, Interfaces
     from granian.http import HTTP1Settings
 
@@ -83,7 +91,7 @@ def server_options(settings: Settings) -> dict[str, Any]:
         "http": HTTPModes.http1,
         "websockets": False,
         "backlog": BACKLOG,
-        "backpressure": settings.max_connections,
+        "backpressure": connection_cap(settings, open_files),
         "http1_settings": HTTP1Settings(
             header_read_timeout=max(1, round(1e3 * settings.header_timeout)),
             keep_alive=True,
@@ -116,13 +124,13 @@ def main() -> None:
 
     settings = Settings()
     os.environ[SUPERVISOR_ENV] = str(os.getpid())  # the workers die with this process
-    raise_open_files_limit()
+    open_files = raise_open_files_limit()
     made = prepare_multiprocess_metrics()
     multiprocessing.set_start_method("spawn", force=True)
     try:
         if settings.metrics_port:
             serve_metrics(settings)
-        Server(**server_options(settings)).serve()
+        Server(**server_options(settings, open_files)).serve()
     finally:
         if made is not None:
             shutil.rmtree(made, ignore_errors=True)

@@ -51,8 +51,6 @@ from typing import Any, Generic, Literal, TypeVar
 import anyio
 import anyio.to_thread
 
-from app import metrics
-
 logger = logging.getLogger(__name__)
 
 #: added to the niceness of the plan processes: on a busy CPU the scheduler prefers the worker's event
@@ -174,10 +172,12 @@ class PlanExecutor:
         *,
         max_calls: int | None = None,
         max_rss_bytes: int | None = None,
+        on_replace: Callable[[str], object] | None = None,
     ) -> None:
         """``processes`` plan processes (0: a thread), ``max_pending`` calls queued or running at most,
         ``setup`` run first in every plan process (a module-level function); a process is replaced
-        after ``max_calls`` calls or when above ``max_rss_bytes`` resident after a call."""
+        after ``max_calls`` calls or when above ``max_rss_bytes`` resident after a call, and
+        ``on_replace(reason)`` told (the metrics)."""
         if processes < 0 or max_pending < 1:
             raise ValueError("processes must be ≥ 0 and max_pending ≥ 1")
         self.processes = processes
@@ -185,6 +185,7 @@ class PlanExecutor:
         self.max_calls = max_calls
         self.max_rss_bytes = max_rss_bytes
         self._setup = setup
+        self._on_replace = on_replace
         self._slots: list[_Slot] = []
         self._idle: asyncio.Queue[_Slot] | None = None
         self._limiter: anyio.CapacityLimiter | None = None
@@ -239,7 +240,8 @@ class PlanExecutor:
         old, slot.pool, slot.calls, slot.state = slot.pool, self._new_pool(), 0, "starting"
         old.shutdown(wait=False, cancel_futures=True)
         self.recycled[reason] += 1
-        metrics.observe_recycle(reason)
+        if self._on_replace is not None:
+            self._on_replace(reason)
         logger.info("plan process replaced", extra={"slot": slot.index, "reason": reason})
         task = asyncio.ensure_future(self._warm(slot))
         self._background.add(task)

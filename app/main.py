@@ -23,7 +23,7 @@ from fastapi.routing import APIRoute
 from starlette.middleware.cors import CORSMiddleware
 from starlette.routing import BaseRoute, Route
 
-from app import __version__
+from app import __version__, metrics
 from app.docs import install_docs
 from app.errors import install_error_handlers
 from app.executor import PlanExecutor, die_with_parent
@@ -116,6 +116,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         setup=warm_up,
         max_calls=settings.max_process_calls,
         max_rss_bytes=settings.max_process_rss_mb * 1024 * 1024,
+        on_replace=metrics.observe_recycle,
     )
 
     drain_after = max(0.0, settings.shutdown_timeout - SHUTDOWN_MARGIN_S)

@@ -94,11 +94,11 @@ class Settings(BaseSettings):
         65536, ge=8192, le=16 * 1024 * 1024, description="Largest request head [bytes]; else 431."
     )
     max_connections: int = Field(
-        1024,
+        4096,
         ge=1,
         le=1_000_000,
-        description="Requests handled at once per worker (granian's backpressure); more wait in the listen "
-        "backlog.",
+        description="Connections served at once per worker (granian's backpressure; at most the open-files "
+        "limit less a reserve); more wait in the listen backlog.",
     )
     shutdown_timeout: float = Field(
         8.0,

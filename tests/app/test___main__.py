@@ -78,8 +78,13 @@ def test_the_open_files_limit_is_raised_to_the_hard_one(monkeypatch: pytest.Monk
     limits = {"now": (1024, 4096)}
     monkeypatch.setattr(resource, "getrlimit", lambda which: limits["now"])
     monkeypatch.setattr(resource, "setrlimit", lambda which, value: limits.update(now=value))
-    assert importlib.import_module("app.__main__").raise_open_files_limit() == 4096
+    module = importlib.import_module("app.__main__")
+    assert module.raise_open_files_limit() == 4096
     assert limits["now"] == (4096, 4096)
+    # connections past the open files would fail to be accepted: the cap keeps them in the backlog
+    settings = Settings(max_connections=10_000)
+    assert module.server_options(settings, 4096)["backpressure"] == 4096 - module.RESERVED_FILES
+    assert module.server_options(settings, 1 << 20)["backpressure"] == 10_000
 
 
 def test_the_metrics_port_moves_metrics_off_the_service_port() -> None:
