@@ -21,7 +21,7 @@ import time
 from fastapi import Request, Response
 
 from app import metrics
-from app.errors import RequestError, error_response
+from app.errors import error_response
 from app.executor import DeadlineExceeded, Overloaded, PlanExecutor, ProcessDied, ShuttingDown
 from app.jobs import Job, Kind, Outcome, run_job
 from app.limits import MAX_TIME_BUDGET_MS, MIN_TIME_BUDGET_MS
@@ -97,10 +97,6 @@ async def compute(request: Request, kind: Kind, settings: Settings, executor: Pl
         if executor.closing:
             response.headers["Connection"] = "close"
         return _timing(response, arrived)
-    except RequestError as exc:
-        if exc.status != 503:
-            raise
-        return _timing(_unavailable(exc.code, exc.message), arrived)
     if outcome.plan_status is not None:
         metrics.observe_plan(outcome.plan_status, outcome.timing_ms or {})
         request.state.plan_status = outcome.plan_status

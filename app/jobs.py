@@ -8,13 +8,14 @@ size), the computation, and writing the answer.
 
 **The deadline of a plan.** Its budget (``options.time_budget_ms``, else the server's) counts from the
 request's arrival (``time.monotonic()`` is the same clock in every process of the machine): what
-reading the body, waiting for a plan process and parsing took is gone from it. A plan that finds less
-than :data:`app.limits.MIN_TIME_BUDGET_MS` left is not started (503 ``deadline_exceeded``); otherwise
-the planner gets what remains. The answer says how long the request waited and ran
-(``diagnostics.request``).
+reading the body, waiting for a plan process and parsing took is gone from it, and the planner gets
+what remains (at least :data:`app.limits.MIN_TIME_BUDGET_MS`: a plan that starts with its budget spent
+ends at once as a braking ``fallback``). A request that finds no plan process free before its budget
+is gone is not started at all (503, :mod:`app.compute`). The answer says how long the request waited
+and ran (``diagnostics.request``).
 
-Refusals raise :class:`app.errors.RequestError` or :class:`planner.errors.PlannerError`; the worker's
-handlers answer them.
+Refusals raise :class:`app.errors.RequestError` (422) or :class:`planner.errors.PlannerError`; the
+worker's handlers answer them.
 """
 
 from __future__ import annotations
@@ -35,7 +36,6 @@ from app.conversions import (
     plan_data,
     to_problem,
 )
-from app.errors import RequestError
 from app.intake import Structure, parse
 from app.limits import (
     MAX_ID_LENGTH,
@@ -93,16 +93,8 @@ def _elapsed_ms(since: float) -> float:
 
 
 def _remaining_budget(job: Job, budget_ms: float) -> float:
-    """What remains of ``budget_ms`` since the request arrived [ms]; 503 if too little to start."""
-    remaining = budget_ms - _elapsed_ms(job.arrived)
-    if remaining < MIN_TIME_BUDGET_MS:
-        raise RequestError(
-            503,
-            "deadline_exceeded",
-            f"The budget of {budget_ms:g} ms was spent before the plan could start "
-            f"({_elapsed_ms(job.arrived):.0f} ms reading, waiting and parsing); retry later.",
-        )
-    return remaining
+    """What remains of ``budget_ms`` since the request arrived [ms], at least the smallest budget."""
+    return max(MIN_TIME_BUDGET_MS, budget_ms - _elapsed_ms(job.arrived))
 
 
 def plan_job(job: Job) -> Outcome:
@@ -121,9 +113,8 @@ def plan_job(job: Job) -> Outcome:
 
 def candidates_job(job: Job) -> Outcome:
     """``/v1/candidates``: the candidate paths of a planning request (no plan: its budget bounds only
-    the wait)."""
+    the wait for a plan process)."""
     request = parse(job.body, PlanningRequest, PLANNING_STRUCTURE)
-    _remaining_budget(job, request.options.time_budget_ms or job.default_budget_ms)
     problem = to_problem(request)
     ref = build_reference(problem.reference_line)
     start = ego_frenet(ref, problem.ego)

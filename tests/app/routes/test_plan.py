@@ -17,7 +17,7 @@ from fastapi.testclient import TestClient
 
 from app import jobs as plan_route
 from app.deps import get_plan_executor
-from app.executor import Overloaded, PlanExecutor
+from app.executor import DeadlineExceeded, Overloaded, PlanExecutor
 from app.main import app, create_app
 from app.models.plan import STAGES, PlanResponse
 from app.settings import Settings
@@ -223,7 +223,7 @@ def test_answers_match_the_openapi_schema(client: TestClient, demo: dict[str, An
 
 def test_the_budget_counts_from_the_arrival(demo: dict[str, Any], monkeypatch: pytest.MonkeyPatch) -> None:
     """The planner gets what remains of the request's budget (the request's own, else the server's) once
-    the request has waited; a budget gone before the plan can start is a 503 to retry."""
+    the request has waited; a budget spent before the plan starts makes a braking fallback at once."""
     budgets: list[float] = []
 
     def recording(problem: Any) -> Any:
@@ -233,10 +233,11 @@ def test_the_budget_counts_from_the_arrival(demo: dict[str, Any], monkeypatch: p
     monkeypatch.setattr(plan_route, "plan", recording)
     tight = TestClient(create_app(Settings(plan_processes=0, time_budget_ms=1.0)))
     with tight:
-        r = tight.post("/v1/plan", json=demo)  # the server's 1 ms: spent before the plan starts
-        assert r.status_code == 503 and r.headers["Retry-After"] == "1"
-        assert r.json()["error"]["code"] == "deadline_exceeded" and not budgets
-        assert "total;dur=" in r.headers["Server-Timing"]
+        answer = _plan(tight, demo)  # the server's 1 ms: spent before the plan starts
+        assert answer["status"] == "fallback" and "time budget of 1 ms spent" in answer["message"]
+        assert answer["trajectory"][-1]["v"] == pytest.approx(0.0, abs=1e-9)
+        assert budgets == [1.0]  # the smallest budget
+        budgets.clear()
         demo["options"]["time_budget_ms"] = 10_000.0  # the request's own budget wins
         out = _plan(tight, demo)
         assert out["status"] == "ok"
@@ -256,9 +257,25 @@ class _FullExecutor(PlanExecutor):
         raise Overloaded("256 plans are queued or running")
 
 
+class _LateExecutor(PlanExecutor):
+    async def run(self, fn: Any, arg: Any, deadline: float | None = None) -> Any:
+        assert deadline is not None and arg.arrived + 9.9 < deadline <= arg.arrived + 10.0
+        raise DeadlineExceeded("no plan process became free before the deadline")
+
+
 def test_overload_is_a_503_to_retry(demo: dict[str, Any]) -> None:
     app = create_app(Settings(plan_processes=0))
     app.dependency_overrides[get_plan_executor] = lambda: _FullExecutor(processes=0, max_pending=1)
     r = TestClient(app).post("/v1/plan", json=demo, headers={"X-Request-ID": "busy"})
     assert r.status_code == 503 and r.headers["Retry-After"] == "1" and r.headers["X-Request-ID"] == "busy"
     assert r.json()["error"]["code"] == "overloaded" and "256 plans" in r.json()["error"]["message"]
+
+
+def test_a_plan_that_cannot_start_within_its_budget_is_a_503_to_retry(demo: dict[str, Any]) -> None:
+    app = create_app(Settings(plan_processes=0))
+    app.dependency_overrides[get_plan_executor] = lambda: _LateExecutor(processes=0, max_pending=1)
+    demo["options"]["time_budget_ms"] = 10_000.0  # the wait's deadline: 10 s from the arrival
+    r = TestClient(app).post("/v1/plan", json=demo)
+    assert r.status_code == 503 and r.headers["Retry-After"] == "1"
+    assert r.json()["error"]["code"] == "deadline_exceeded"
+    assert "total;dur=" in r.headers["Server-Timing"]
