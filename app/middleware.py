@@ -119,7 +119,8 @@ class RequestContextMiddleware:
             if "plan_status" in state:
                 fields["plan_status"] = state["plan_status"]
                 fields["timing_ms"] = state.get("plan_timing_ms")
-            access_logger.log(logging.ERROR if status >= 500 else logging.INFO, "request", extra=fields)
+            level = logging.INFO if status < 500 else logging.WARNING if status == 503 else logging.ERROR
+            access_logger.log(level, "request", extra=fields)
             REQUEST_ID.reset(token)
 
 

@@ -12,7 +12,7 @@ import os
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, SecretStr, field_validator
+from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from app.limits import MAX_BODY_BYTES, MAX_TIME_BUDGET_MS, MIN_TIME_BUDGET_MS
@@ -153,6 +153,15 @@ class Settings(BaseSettings):
     max_pending_plans: int = Field(
         256, ge=1, le=100_000, description="Plans queued or running per worker; one more is a 503."
     )
+
+    @model_validator(mode="after")
+    def _bodies_fit_the_budget(self) -> Settings:
+        if self.max_inflight_body_bytes < self.max_body_bytes:
+            raise ValueError(
+                f"max_inflight_body_bytes ({self.max_inflight_body_bytes}) must be at least max_body_bytes "
+                f"({self.max_body_bytes}): the largest body would never fit"
+            )
+        return self
 
     @field_validator("log_level", mode="before")
     @classmethod
