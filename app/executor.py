@@ -55,7 +55,7 @@ logger = logging.getLogger(__name__)
 
 #: added to the niceness of the plan processes: on a busy CPU the scheduler prefers the worker's event
 #: loop (little CPU, wanted at once) to the plans
-PLAN_NICENESS = 5
+PLAN_NICENESS = 10
 #: ``prctl`` option that has the kernel send a signal to a process when its parent dies (Linux)
 PR_SET_PDEATHSIG = 1
 

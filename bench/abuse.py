@@ -5,6 +5,8 @@ few times: some attacks need other settings or kill the server), and prints per 
 status codes (or what became of the connections), the latency of ``GET /healthz`` meanwhile — each
 probe on a new connection every 50 ms, from a process of its own, as a liveness probe would — and the
 resident memory of the server's processes after it (the largest HTTP worker, the largest plan process).
+The attacking process runs at niceness +10: on a shared 2-core machine its own CPU use (reading 16 MB
+answers in Python) would otherwise delay the probe, which a remote attacker's would not.
 Everything is bounded in count and time and stops by itself; nothing but 127.0.0.1 is contacted.
 
 Targets (issue 11, 2 cores): /healthz p99 ≤ 100 ms and max ≤ 500 ms during every attack; no process
@@ -794,6 +796,19 @@ async def kill_supervisor(svc: Service, _: None) -> Outcome:
 # --------------------------------------------------------------------------------------------------
 
 
+@contextlib.contextmanager
+def attacker_niced() -> Iterator[None]:
+    """Run the attack at niceness +10 (the server and the /healthz probe, started before, keep theirs):
+    on a shared machine the attacker would be elsewhere, so its own CPU use should not delay the probe."""
+    before = os.getpriority(os.PRIO_PROCESS, 0)
+    os.setpriority(os.PRIO_PROCESS, 0, before + 10)
+    try:
+        yield
+    finally:
+        with contextlib.suppress(PermissionError):  # lowering it back needs the right to
+            os.setpriority(os.PRIO_PROCESS, 0, before)
+
+
 @dataclass(frozen=True)
 class Attack:
     name: str
@@ -855,7 +870,7 @@ def run(attacks: list[Attack]) -> int:
                 print(f"-- {attack.name}: {(attack.run.__doc__ or '').splitlines()[0]}", flush=True)
                 data = attack.prepare(svc) if attack.prepare is not None else None
                 t0 = time.monotonic()
-                with probing(svc.port) as health:
+                with probing(svc.port) as health, attacker_niced():
                     codes = asyncio.run(attack.run(svc, data))
                 took = time.monotonic() - t0
                 rss = svc.rss_mb() if not attack.ends_server else {}
