@@ -8,10 +8,12 @@ No timing here: the latency of /healthz under load is measured by ``bench/load.p
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import subprocess
 import sys
 import time
+from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
@@ -81,11 +83,20 @@ async def test_the_executor_refuses_more_than_max_pending() -> None:
     assert await first == "done" and executor.pending == 0
 
 
-@pytest.mark.anyio
-async def test_a_dead_process_fails_only_its_own_call() -> None:
-    executor = PlanExecutor(processes=2, max_pending=4)
+@contextlib.asynccontextmanager
+async def started(**options: Any) -> AsyncIterator[PlanExecutor]:
+    """A started executor (``max_pending`` 4 unless given), shut down afterwards."""
+    executor = PlanExecutor(**{"max_pending": 4, **options})
     await executor.start()
     try:
+        yield executor
+    finally:
+        await executor.shutdown()
+
+
+@pytest.mark.anyio
+async def test_a_dead_process_fails_only_its_own_call() -> None:
+    async with started(processes=2) as executor:
         survivor = asyncio.ensure_future(executor.run(sleep_then_pid, 1.0))
         await asyncio.sleep(0.2)  # the survivor runs in one process, the crash goes to the other
         with pytest.raises(ProcessDied):
@@ -93,33 +104,21 @@ async def test_a_dead_process_fails_only_its_own_call() -> None:
         assert await survivor > 0  # not failed with it
         assert executor.recycled["died"] == 1
         assert await executor.run(abs, -2) == 2  # the slot got a fresh process
-    finally:
-        await executor.shutdown()
 
 
 @pytest.mark.anyio
 async def test_a_process_is_replaced_after_max_calls_and_above_max_rss() -> None:
-    executor = PlanExecutor(processes=1, max_pending=4, max_calls=2)
-    await executor.start()
-    try:
+    async with started(processes=1, max_calls=2) as executor:
         pids = [await executor.run(sleep_then_pid, 0.0) for _ in range(3)]
         assert pids[0] == pids[1] != pids[2] and executor.recycled["calls"] == 1
-    finally:
-        await executor.shutdown()
-    executor = PlanExecutor(processes=1, max_pending=4, max_rss_bytes=1)  # every process is too big
-    await executor.start()
-    try:
+    async with started(processes=1, max_rss_bytes=1) as executor:  # every process is too big
         first, second = [await executor.run(sleep_then_pid, 0.0) for _ in range(2)]
         assert first != second and executor.recycled["memory"] == 2
-    finally:
-        await executor.shutdown()
 
 
 @pytest.mark.anyio
 async def test_a_call_that_cannot_start_before_its_deadline_is_refused() -> None:
-    executor = PlanExecutor(processes=1, max_pending=4)
-    await executor.start()
-    try:
+    async with started(processes=1) as executor:
         busy = asyncio.ensure_future(executor.run(sleep_then_pid, 1.5))
         await asyncio.sleep(0.2)
         with pytest.raises(DeadlineExceeded):
@@ -128,8 +127,6 @@ async def test_a_call_that_cannot_start_before_its_deadline_is_refused() -> None
             await executor.run(abs, -1, deadline=time.monotonic() - 1.0)
         assert await busy > 0
         assert await executor.run(abs, -1, deadline=time.monotonic() + 10) == 1
-    finally:
-        await executor.shutdown()
 
 
 @pytest.mark.anyio
