@@ -773,7 +773,7 @@ async def shutdown(svc: Service, body: bytes) -> Outcome:
     tasks = [
         asyncio.ensure_future(http(svc.port, "POST", "/v1/plan", body, JSON, timeout=60)) for _ in range(6)
     ]
-    await asyncio.sleep(3.0)
+    await asyncio.sleep(1.0)  # two parsing or planning, four queued
     pids = [p for pids in svc.roles().values() for p in pids]
     t0 = time.monotonic()
     assert svc.proc is not None
