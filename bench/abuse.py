@@ -626,9 +626,9 @@ async def held_bodies(svc: Service, _: None) -> Outcome:
 
 
 async def hostile(svc: Service, plans: list[bytes]) -> Outcome:
-    """Hostile bodies to every computing endpoint, and hostile planning requests, four at a time (so
-    that each is parsed rather than refused for want of a process)."""
-    gate = asyncio.Semaphore(4)
+    """Hostile bodies to every computing endpoint, and hostile planning requests, two at a time (one
+    per plan process: each is parsed rather than refused for want of a process)."""
+    gate = asyncio.Semaphore(2)
 
     async def gated(call: Awaitable[tuple[int, dict[str, str], bytes]]) -> tuple[int, dict[str, str], bytes]:
         async with gate:
