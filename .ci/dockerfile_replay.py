@@ -526,7 +526,7 @@ def main(argv: list[str] | None = None) -> int:
                 raise ReplayError(f"the test command exited {done.returncode}")
 
         code = stop(server)
-        # uvicorn re-raises the signal once it has shut down, so a clean stop may end by SIGTERM
+        # a server may re-raise the signal once it has shut down, so a clean stop may end by SIGTERM
         if code not in (0, -signal.SIGTERM):
             raise ReplayError(f"the server exited {code} on SIGTERM")
         log_text = log_path.read_text(errors="replace")

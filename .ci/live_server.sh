@@ -1,4 +1,5 @@
-# Sourced by .ci/clients.sh and .ci/fuzz.sh: run `uvicorn app.main:app` on a free loopback port.
+# Sourced by .ci/clients.sh and .ci/fuzz.sh: run `python -m app` (the service as deployed: granian,
+# plan processes) on a free loopback port.
 #
 #   start_server LOGFILE   start it, wait until GET /healthz answers, export BASE_URL
 #   stop_server            stop it (also run by the EXIT trap the caller sets)
@@ -38,7 +39,7 @@ start_server() {
     local log=$1 port attempt status
     for attempt in 1 2 3; do
         port=$(_free_port)
-        python -m uvicorn app.main:app --host 127.0.0.1 --port "$port" --log-level warning >"$log" 2>&1 &
+        KAPPA_HOST=127.0.0.1 KAPPA_PORT="$port" KAPPA_LOG_LEVEL=warning python -m app >"$log" 2>&1 &
         server_pid=$!
         status=0
         _wait_healthy "http://127.0.0.1:$port" "$server_pid" || status=$?

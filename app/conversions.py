@@ -1,22 +1,22 @@
 """Every conversion between the API's models and the planner's dataclasses, in one place.
 
 :func:`to_problem` turns a validated request into a :class:`planner.problem.PlanningProblem`;
-:func:`from_problem` goes the other way (the demo endpoint); :func:`candidates_response` is the
-answer of ``/v1/candidates``; :func:`candidate_data` and :func:`plan_data` write the planner's answers
-as the JSON data of :class:`~app.models.candidates.Candidate` lists and
-:class:`~app.models.plan.PlanResponse`: plain lists and dicts built from the arrays (no model per
-point; finiteness checked on the arrays), ready for ``pydantic_core.to_json``.
+:func:`from_problem` goes the other way (the demo endpoint); :func:`candidates_data`,
+:func:`candidate_data`, :func:`frenet_data`, :func:`cartesian_data` and :func:`plan_data` write the
+answers as the JSON data of their response models: plain lists and dicts built from the arrays (no
+model per point; finiteness checked on the arrays), ready for ``pydantic_core.to_json``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from functools import cache
 from typing import Any, get_args
 
 import numpy as np
 
-from app.models.candidates import CandidatesDiagnostics, CandidatesResponse
-from app.models.plan import STAGES, TrajectoryPoint
+from app.models.candidates import CandidatesDiagnostics
+from app.models.plan import STAGES, RequestTiming, TrajectoryPoint
 from app.models.planning import (
     AnyObstacle,
     Circle,
@@ -33,6 +33,7 @@ from app.models.planning import (
 from planner import problem as pp
 from planner.candidates import CandidateSet
 from planner.ego import EgoFrenet
+from planner.frenet import FrenetPoints
 from planner.reference import ReferenceLine
 from planner.result import PlanResult
 from planner.result import Status as PlanStatus
@@ -54,15 +55,16 @@ def _obstacle_to_problem(o: AnyObstacle) -> pp.Obstacle:
         return pp.CircleObstacle(
             id=o.id, center=np.asarray(o.circle.center, dtype=float), radius=o.circle.radius
         )
-    states = np.array([[p.t, p.x, p.y, p.heading] for p in o.prediction], dtype=float)
+    states = np.array([[p["t"], p["x"], p["y"], p["heading"]] for p in o.prediction], dtype=float)
     return pp.DynamicObstacle(id=o.id, length=o.length, width=o.width, prediction=states)
 
 
 def to_problem(request: PlanningRequest, *, time_budget_ms: float | None = None) -> pp.PlanningProblem:
     """The planner's :class:`~planner.problem.PlanningProblem` of a validated request;
-    ``time_budget_ms`` [ms] stands in for a budget the request leaves out."""
+    ``time_budget_ms`` [ms], when given, is the plan's budget instead of the request's (the service
+    passes what remains of the request's budget once it has waited, :mod:`app.jobs`)."""
     options = request.options.model_dump()
-    if options["time_budget_ms"] is None:
+    if time_budget_ms is not None:
         options["time_budget_ms"] = time_budget_ms
     return pp.PlanningProblem(
         reference_line=np.asarray(request.reference_line, dtype=float),
@@ -142,9 +144,10 @@ def _require_finite(what: str, *arrays: Any) -> None:
             raise ValueError(f"{what} holds a non-finite number")
 
 
-def candidates_response(cs: CandidateSet, ref: ReferenceLine, start: EgoFrenet) -> CandidatesResponse:
-    """The answer of ``/v1/candidates``: the candidates ``cs`` generated on ``ref`` from the ego's
-    Frenet state ``start``, and their diagnostics."""
+def candidates_data(cs: CandidateSet, ref: ReferenceLine, start: EgoFrenet) -> dict[str, Any]:
+    """The answer of ``/v1/candidates`` as the JSON data of
+    :class:`~app.models.candidates.CandidatesResponse`: the candidates ``cs`` generated on ``ref``
+    from the ego's Frenet state ``start``, and their diagnostics."""
     diagnostics = CandidatesDiagnostics(
         generated=cs.count,
         repaired=int(np.count_nonzero(cs.repaired)),
@@ -157,7 +160,20 @@ def candidates_response(cs: CandidateSet, ref: ReferenceLine, start: EgoFrenet) 
         ego_d=start.d,
         kept_points=int(np.count_nonzero(cs.valid)),
     )
-    return CandidatesResponse(candidates=candidate_data(cs), diagnostics=diagnostics)
+    return {"candidates": candidate_data(cs), "diagnostics": diagnostics.model_dump(mode="json")}
+
+
+def frenet_data(fr: FrenetPoints) -> dict[str, Any]:
+    """The answer of ``/v1/frenet`` (:class:`~app.models.coordinates.FrenetResponse`) as JSON data."""
+    _require_finite("a Frenet coordinate", fr.s, fr.d)
+    return {"s": fr.s.tolist(), "d": fr.d.tolist()}
+
+
+def cartesian_data(xy: np.ndarray) -> dict[str, Any]:
+    """The answer of ``/v1/cartesian`` (:class:`~app.models.coordinates.CartesianResponse`) as JSON
+    data."""
+    _require_finite("a Cartesian point", xy)
+    return {"points": np.asarray(xy, dtype=float).tolist()}
 
 
 def candidate_data(cs: CandidateSet) -> list[dict[str, Any]]:
@@ -182,12 +198,13 @@ _POINT_FIELDS = tuple(name for name in TrajectoryPoint.model_fields if name != "
 _CAR_FIELDS = (*_POINT_FIELDS, "steering_angle")
 
 
-def plan_data(result: PlanResult) -> dict[str, Any]:
+def plan_data(result: PlanResult, request_ms: Mapping[str, float]) -> dict[str, Any]:
     """The answer to :func:`planner.pipeline.plan`'s ``result`` as the JSON data of
     :class:`~app.models.plan.PlanResponse` (plain lists and dicts built from the arrays, ready for
     ``pydantic_core.to_json``; each point's ``steering_angle`` only for a car; ``candidates`` only when
     the planner returned them; every stage of
-    :data:`~app.models.plan.STAGES`, 0 for one that did not run).
+    :data:`~app.models.plan.STAGES`, 0 for one that did not run), with ``request_ms``, the
+    request's budget and how long it waited and ran (:class:`~app.models.plan.RequestTiming`).
 
     A non-finite number or an unknown solver status is a bug and raises ``ValueError``.
     """
@@ -226,5 +243,6 @@ def plan_data(result: PlanResult) -> dict[str, Any]:
             "profile": ProfileKind(diag.speed_profile).value,
         },
         "timing_ms": dict(zip(STAGES, timing, strict=True)),
+        "request": {name: float(request_ms[name]) for name in RequestTiming.model_fields},
     }
     return data

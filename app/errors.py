@@ -7,11 +7,13 @@ Body of every 4xx and 5xx answer::
 
 ``field`` is a dotted path into the request body (``""`` is the body as a whole). Status codes:
 
-* request the API cannot read or that breaks the schema (malformed JSON, NaN, wrong types, limits)
-  → 422 ``malformed_json`` / ``invalid_request``;
+* request the API cannot read or that breaks the schema (malformed JSON, a key twice, NaN, wrong
+  types, limits) → 422 ``malformed_json`` / ``duplicate_key`` / ``invalid_request``
+  (:class:`RequestError`, raised by :mod:`app.intake` in a plan process);
 * :class:`planner.errors.PlannerError` → the status and code of :data:`PLANNER_ERRORS`
   (most specific class first): a geometrically unusable input is 422;
-* HTTP-level refusals (unknown path, method, body too large) → their status;
+* HTTP-level refusals (unknown path or method, no or a wrong API key, a body too large, too slow,
+  not JSON or compressed, too many requests, no capacity) → their status;
 * anything else is a bug of the server: logged with its traceback, answered 500 ``internal_error``.
 """
 
@@ -19,7 +21,7 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, cast
 
 from fastapi import FastAPI, Request
@@ -42,22 +44,39 @@ PLANNER_ERRORS: dict[type[PlannerError], tuple[int, str]] = {
 #: codes of HTTP-level refusals; other statuses get ``http_<status>``
 HTTP_CODES: dict[int, str] = {
     400: "bad_request",
+    401: "unauthorized",
     404: "not_found",
     405: "method_not_allowed",
+    408: "request_timeout",
     413: "payload_too_large",
     415: "unsupported_media_type",
+    429: "rate_limited",
+    503: "unavailable",
 }
 #: most details listed in one answer
 MAX_DETAILS = 50
 
 
-#: OpenAPI ``responses`` of an endpoint that takes a JSON body
-ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
-    413: {"model": ErrorResponse, "description": "The request body is too large."},
-    422: {
-        "model": ErrorResponse,
-        "description": "The request is malformed, breaks the schema, or is geometrically unusable.",
-    },
+def _documented(description: str) -> dict[str, Any]:
+    return {"model": ErrorResponse, "description": description}
+
+
+#: OpenAPI ``responses`` of every ``/v1`` endpoint and ``/metrics`` (refusals before any work)
+ACCESS_RESPONSES: dict[int | str, dict[str, Any]] = {
+    401: _documented("An API key is required (`KAPPA_API_KEYS`): `Authorization: Bearer <key>`."),
+    429: _documented("Too many requests from this client (`KAPPA_RATE_LIMIT`); retry after `Retry-After` s."),
+}
+#: OpenAPI ``responses`` of an endpoint that takes a JSON body and computes in a plan process
+COMPUTE_RESPONSES: dict[int | str, dict[str, Any]] = {
+    **ACCESS_RESPONSES,
+    408: _documented("The body did not arrive within `KAPPA_BODY_TIMEOUT` seconds."),
+    413: _documented("The request body is too large."),
+    415: _documented("The body is not `application/json`, or is compressed (`Content-Encoding`)."),
+    422: _documented("The request is malformed, breaks the schema, or is geometrically unusable."),
+    503: _documented(
+        "No capacity: the queue is full, no plan process was free before the request's budget ran "
+        "out, its plan process died, or the service is stopping; retry after `Retry-After` seconds."
+    ),
 }
 
 
@@ -83,19 +102,8 @@ def field_path(loc: Sequence[Any]) -> str:
     return ".".join(str(p) for p in parts if p not in UNION_TAGS)
 
 
-def _json_error(exc: RequestValidationError, error: dict[str, Any]) -> JSONResponse:
-    pos = error["loc"][-1] if isinstance(error["loc"][-1], int) else 0
-    doc = exc.body if isinstance(exc.body, str) else ""
-    line = doc.count("\n", 0, pos) + 1
-    column = pos - (doc.rfind("\n", 0, pos) + 1) + 1
-    reason = error.get("ctx", {}).get("error", "invalid JSON")
-    message = f"{reason} at line {line}, column {column}"
-    return error_response(
-        422, "malformed_json", "The request body is not valid JSON.", [("", message)]
-    )
-
-
-def _message(error: dict[str, Any]) -> str:
+def validation_message(error: Mapping[str, Any]) -> str:
+    """The message of one pydantic/FastAPI validation error as the answer shows it."""
     if error["type"] == "missing" and tuple(error["loc"]) == ("body",):
         return "a JSON object is required"
     if error["type"] == "extra_forbidden":
@@ -103,25 +111,38 @@ def _message(error: dict[str, Any]) -> str:
     return str(error["msg"])
 
 
-async def request_validation_handler(request: Request, exc: Exception) -> JSONResponse:
-    """422 for a body that is not JSON or breaks the schema."""
-    exc = cast(RequestValidationError, exc)
-    errors = list(exc.errors())
-    for error in errors:
-        if error["type"] == "json_invalid":
-            return _json_error(exc, error)
+class RequestError(Exception):
+    """A request the service cannot use, as the answer says it: status, code, message and
+    ``(field, message)`` details. Picklable: it crosses from a plan process to the worker."""
+
+    def __init__(self, status: int, code: str, message: str, details: Sequence[tuple[str, str]] = ()) -> None:
+        super().__init__(status, code, message, list(details))
+        self.status, self.code, self.message = status, code, message
+        self.details: list[tuple[str, str]] = list(details)
+
+
+def invalid_request(errors: Sequence[Mapping[str, Any]]) -> RequestError:
+    """The 422 ``invalid_request`` of failed validation ``errors`` (pydantic's), the first
+    :data:`MAX_DETAILS` listed."""
     shown = errors[:MAX_DETAILS]
-    more = (
-        f" ({len(errors)} problems, the first {len(shown)} listed)"
-        if len(errors) > len(shown)
-        else ""
-    )
-    return error_response(
+    more = f" ({len(errors)} problems, the first {len(shown)} listed)" if len(errors) > len(shown) else ""
+    return RequestError(
         422,
         "invalid_request",
         f"The request does not match the schema{more}.",
-        [(field_path(e["loc"]), _message(e)) for e in shown],
+        [(field_path(e["loc"]), validation_message(e)) for e in shown],
     )
+
+
+async def request_error_handler(request: Request, exc: Exception) -> JSONResponse:
+    """The answer a :class:`RequestError` describes."""
+    exc = cast(RequestError, exc)
+    return error_response(exc.status, exc.code, exc.message, exc.details)
+
+
+async def request_validation_handler(request: Request, exc: Exception) -> JSONResponse:
+    """422 for parameters FastAPI validated (the API's bodies are validated by :mod:`app.intake`)."""
+    return await request_error_handler(request, invalid_request(cast(RequestValidationError, exc).errors()))
 
 
 async def planner_error_handler(request: Request, exc: Exception) -> JSONResponse:
@@ -134,14 +155,6 @@ async def planner_error_handler(request: Request, exc: Exception) -> JSONRespons
 async def http_error_handler(request: Request, exc: Exception) -> JSONResponse:
     """HTTP-level refusals (404, 405, 413, an unreadable body …) in the one shape."""
     exc = cast(StarletteHTTPException, exc)
-    cause = exc.__cause__
-    if exc.status_code == 400 and isinstance(cause, ValueError | RecursionError):
-        # FastAPI answers 400 for a body json.loads refused without a JSONDecodeError.
-        reason = "nested too deeply" if isinstance(cause, RecursionError) else str(cause)
-        reason = reason.split(":")[0]  # the cause's first clause, without advice on Python
-        return error_response(
-            422, "malformed_json", "The request body is not valid JSON.", [("", reason)]
-        )
     code = HTTP_CODES.get(exc.status_code, f"http_{exc.status_code}")
     message = exc.detail if isinstance(exc.detail, str) else json.dumps(exc.detail)
     response = error_response(exc.status_code, code, message)
@@ -158,6 +171,7 @@ async def unexpected_error_handler(request: Request, exc: Exception) -> JSONResp
 
 def install_error_handlers(app: FastAPI) -> None:
     """Register the handlers above on ``app``."""
+    app.add_exception_handler(RequestError, request_error_handler)
     app.add_exception_handler(RequestValidationError, request_validation_handler)
     app.add_exception_handler(PlannerError, planner_error_handler)
     app.add_exception_handler(StarletteHTTPException, http_error_handler)

@@ -58,9 +58,18 @@ MAX_PREDICTION_STATES = 2000
 MAX_PREDICTION_TIME = 1e6
 #: obstacle dimensions (circle radius, box length and width) [m]
 MIN_OBSTACLE_SIZE, MAX_OBSTACLE_SIZE = 1e-3, 1000.0
+#: polygon vertices and predicted states over all obstacles of a request: with the other limits, the
+#: largest valid request, as compact JSON, fits in the default body limit (:data:`MAX_BODY_BYTES`)
+MAX_OBSTACLE_POINTS = 100_000
 #: longest total outline of a request's obstacles (polygon perimeters, circle circumferences, box
 #: perimeters) [m]: a bound on the work one request can ask for (the planner cuts long outlines to the road)
 MAX_OBSTACLE_OUTLINE = 20_000.0
+
+# -- the body ---------------------------------------------------------------------------------
+
+#: default largest request body [bytes] (setting ``KAPPA_MAX_BODY_BYTES``): the largest valid request
+#: written as compact JSON with every number at full precision fits (``tests/app/test_limits.py``)
+MAX_BODY_BYTES = 16 * 1024 * 1024
 
 # -- ego and vehicle ---------------------------------------------------------------------------
 

@@ -5,9 +5,10 @@ Every record becomes ``{"ts", "level", "logger", "message", "request_id"?, …ex
 ``request_id`` is :data:`REQUEST_ID` (set by :class:`app.middleware.RequestContextMiddleware` while it
 serves a request) when the record was made: the log record factory notes it on every record.
 
-``python -m app`` configures every logger (uvicorn's included) with :func:`uvicorn_log_config`;
-:func:`configure_logging` covers ``uvicorn app.main:app`` and embedding: it sets up JSON lines on
-stdout only when nothing configured the root logger before (the semantics of ``logging.basicConfig``).
+``python -m app`` configures every logger (granian's included) with :func:`server_log_config`;
+:func:`configure_logging` covers any other server (``uvicorn app.main:app``) and embedding: it sets up
+JSON lines on stdout only when nothing configured the root logger before (the semantics of
+``logging.basicConfig``).
 """
 
 from __future__ import annotations
@@ -67,21 +68,23 @@ def _install_record_factory() -> None:
 
 def configure_logging(level: str) -> None:
     """JSON lines on stdout for every logger unless the root logger has handlers already; the
-    service's loggers (``app.*``) at ``level``; request ids on every record; uvicorn's access log off
-    (the service writes its own line per request, ``app.access``)."""
+    service's loggers (``app.*``) at ``level``; request ids on every record; the servers' access logs
+    off (the service writes its own line per request, ``app.access``)."""
     _install_record_factory()
     if not logging.root.handlers:
         handler = logging.StreamHandler(sys.stdout)
         handler.setFormatter(JSONFormatter())
         logging.root.addHandler(handler)
     logging.getLogger("app").setLevel(level.upper())
-    logging.getLogger("uvicorn.access").disabled = True
+    for name in ("uvicorn.access", "granian.access"):
+        logging.getLogger(name).disabled = True
 
 
-def uvicorn_log_config(level: str) -> dict[str, Any]:
-    """A ``logging.config.dictConfig`` for uvicorn's ``log_config``: everything as JSON lines on stdout,
-    uvicorn's loggers and the service's at ``level``. (Request lines come from the service's
-    ``app.access`` logger; run uvicorn with ``access_log=False``.)"""
+def server_log_config(level: str) -> dict[str, Any]:
+    """A ``logging.config.dictConfig`` for the HTTP server (granian's ``log_dictconfig``, applied in its
+    supervisor and in every worker): everything as JSON lines on stdout, granian's own logger and the
+    service's at ``level``; granian's access log off (the service writes its own line per request,
+    ``app.access``)."""
     level = level.upper()
     return {
         "version": 1,
@@ -92,9 +95,8 @@ def uvicorn_log_config(level: str) -> dict[str, Any]:
         },
         "root": {"handlers": ["stdout"], "level": "WARNING"},
         "loggers": {
-            "uvicorn": {"handlers": [], "level": level, "propagate": True},
-            "uvicorn.error": {"level": level},
-            "uvicorn.access": {"level": level},
+            "_granian": {"handlers": [], "level": level, "propagate": True},
+            "granian.access": {"handlers": [], "level": "CRITICAL", "propagate": False},
             "app": {"level": level},
         },
     }

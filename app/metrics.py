@@ -4,11 +4,13 @@
   ``unmatched`` for an unknown path) and status code;
 * ``kappa_http_request_duration_seconds{route}`` — time from the request to the end of its answer [s];
 * ``kappa_plans_total{status}`` — plans by their status (``ok``, ``stopped``, ``fallback``);
+* ``kappa_plan_process_replacements_total{reason}`` — plan processes replaced (``calls``, ``memory``,
+  ``died``);
 * ``kappa_plan_stage_duration_seconds{stage}`` — wall time of the planner's stages as the plan's
   ``diagnostics.timing_ms`` reports them (:data:`app.models.plan.STAGES`) [s]; a stage that did not
   run is not observed.
 
-Several uvicorn workers: with ``PROMETHEUS_MULTIPROC_DIR`` set before the workers start (``python -m
+Several HTTP workers: with ``PROMETHEUS_MULTIPROC_DIR`` set before the workers start (``python -m
 app`` does it when ``KAPPA_WORKERS`` > 1), every worker writes its values there and each scrape sums
 all of them (prometheus-client's multiprocess mode, counters and histograms only). Without it each
 worker answers its own figures.
@@ -54,6 +56,12 @@ PLAN_STAGE_DURATION = Histogram(
     ("stage",),
     buckets=STAGE_BUCKETS,
 )
+PROCESS_REPLACEMENTS = Counter(
+    "kappa_plan_process_replacements_total",
+    "Plan processes replaced, by reason (calls: served KAPPA_MAX_PROCESS_CALLS; memory: above "
+    "KAPPA_MAX_PROCESS_RSS_MB after a request; died).",
+    ("reason",),
+)
 for _status in get_args(PlanStatus):
     PLANS.labels(_status)
 for _stage in STAGES:
@@ -64,6 +72,11 @@ def observe_request(route: str, method: str, status: int, seconds: float) -> Non
     """Count one HTTP answer and its duration [s]."""
     HTTP_REQUESTS.labels(route, method, str(status)).inc()
     HTTP_DURATION.labels(route).observe(seconds)
+
+
+def observe_recycle(reason: str) -> None:
+    """Count one replaced plan process."""
+    PROCESS_REPLACEMENTS.labels(reason).inc()
 
 
 def observe_plan(status: str, timing_ms: Mapping[str, float]) -> None:

@@ -106,7 +106,7 @@ def own_server(workers: int, plan_processes: int | None, log: Path) -> Iterator[
             time.sleep(0.2)
         yield url, proc.pid
     finally:
-        proc.send_signal(signal.SIGINT)  # uvicorn's graceful shutdown, workers included
+        proc.send_signal(signal.SIGINT)  # the server's graceful shutdown, workers included
         try:
             proc.wait(timeout=30)
         except subprocess.TimeoutExpired:
@@ -271,9 +271,9 @@ def run(url: str, args: argparse.Namespace, server_pid: int | None = None) -> No
         when = ", ".join(f"{ms:.0f} ms at {t:.1f} s" for t, ms in slow[:8])
         print(f"/healthz ≥ 50 ms  {len(slow)}: {when}{' …' if len(slow) > 8 else ''} (s after the start)")
     if cpu_used and ok:
-        # uvicorn serves in the process it was started as (1 worker) or in its children (several);
-        # plan processes are one level further down
-        http_depth = 0 if args.workers == 1 else 1
+        # granian (python -m app) serves in children of the process it was started as, whatever the
+        # number of workers; plan processes are one level further down
+        http_depth = 1
         http = sum(c for pid, c in cpu_used.items() if tree[pid] == http_depth)
         plans = sum(c for pid, c in cpu_used.items() if tree[pid] > http_depth)
         print(

@@ -38,6 +38,7 @@ NOT_IN_PLANNER = (
     "pydantic_core",
     "pydantic_settings",
     "uvicorn",
+    "granian",
     *TOOLS.modules,
     *COMMONROAD.modules,
 )

@@ -69,8 +69,7 @@ def _check_reference(points: list[tuple[float, float]]) -> list[tuple[float, flo
     if length > MAX_REFERENCE_LENGTH:
         raise PydanticCustomError(
             "reference_too_long",
-            f"the reference line is {length:.0f} m long; "
-            f"at most {MAX_REFERENCE_LENGTH:.0f} m is accepted",
+            f"the reference line is {length:.0f} m long; at most {MAX_REFERENCE_LENGTH:.0f} m is accepted",
         )
     return points
 
@@ -80,6 +79,7 @@ ReferencePolyline = Annotated[
     Field(
         min_length=MIN_REFERENCE_POINTS,
         max_length=MAX_REFERENCE_POINTS,
+        fail_fast=True,
         description=(
             "Reference polyline [[x, y], …] [m] in driving order: at least two distinct points, "
             f"at most {MAX_REFERENCE_LENGTH:.0f} m long, never turning straight back (180°)."

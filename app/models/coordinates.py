@@ -14,7 +14,10 @@ class FrenetRequest(RequestModel):
 
     reference_line: ReferencePolyline
     points: list[Point] = Field(
-        min_length=1, max_length=MAX_QUERY_POINTS, description="Cartesian points [[x, y], …] [m]."
+        min_length=1,
+        max_length=MAX_QUERY_POINTS,
+        fail_fast=True,
+        description="Cartesian points [[x, y], …] [m].",
     )
 
 
@@ -30,7 +33,10 @@ class CartesianRequest(RequestModel):
 
     reference_line: ReferencePolyline
     frenet: list[FrenetPoint] = Field(
-        min_length=1, max_length=MAX_QUERY_POINTS, description="Frenet points [[s, d], …] [m]."
+        min_length=1,
+        max_length=MAX_QUERY_POINTS,
+        fail_fast=True,
+        description="Frenet points [[s, d], …] [m].",
     )
 
 

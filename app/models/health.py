@@ -1,4 +1,4 @@
-"""The answer of ``/healthz``."""
+"""The answers of ``/healthz`` and ``/readyz``."""
 
 from __future__ import annotations
 
@@ -11,3 +11,9 @@ class Health(BaseModel):
     """The service is up."""
 
     status: Literal["ok"] = "ok"
+
+
+class Ready(BaseModel):
+    """The service takes requests: its plan processes answer."""
+
+    status: Literal["ready"] = "ready"

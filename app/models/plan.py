@@ -109,13 +109,28 @@ else:
     )
 
 
+class RequestTiming(ResponseModel):
+    """The request's budget and how it was spent, from its arrival at the service [ms]."""
+
+    budget_ms: float = Field(
+        description="The budget: `options.time_budget_ms`, else the server's `KAPPA_TIME_BUDGET_MS`; it "
+        "counts from the request's arrival."
+    )
+    waited_ms: float = Field(
+        description="From the arrival to the start of the plan: reading the body, waiting for a plan "
+        "process, parsing and validating. The planner got `budget_ms` − `waited_ms`."
+    )
+    ran_ms: float = Field(description="The plan, from its start until its trajectory was ready.")
+
+
 class PlanDiagnostics(ResponseModel):
-    """What each stage of the planner did."""
+    """What each stage of the planner did, and how long the request waited and ran."""
 
     candidates: CandidateCounts
     lateral_qp: LateralSolveInfo
     speed: SpeedSolveInfo
     timing_ms: PlanTiming
+    request: RequestTiming
 
 
 class PlanResponse(ResponseModel):

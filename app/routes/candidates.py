@@ -1,33 +1,26 @@
-"""Candidate lateral paths of a planning request (Algorithm 4 or Algorithm 5 of TransF-κ)."""
+"""Candidate lateral paths of a planning request (Algorithm 4 or Algorithm 5 of TransF-κ), computed in a
+plan process (:func:`app.jobs.candidates_job`)."""
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request, Response
 
-from app.conversions import candidates_response, to_problem
-from app.errors import ERROR_RESPONSES
+from app.compute import compute
+from app.deps import PlanExecutorDep, SettingsDep
+from app.errors import COMPUTE_RESPONSES
 from app.models.candidates import CandidatesResponse
-from app.routes.examples import PlanningBody
-from planner.candidates import generate_candidates
-from planner.ego import start_state
-from planner.reference import build_reference
+from app.routes.examples import PLANNING_BODY
 
-router = APIRouter(prefix="/v1", tags=["candidates"], responses=ERROR_RESPONSES)
+router = APIRouter(prefix="/v1", tags=["candidates"], responses=COMPUTE_RESPONSES)
 
 
 @router.post(
     "/candidates",
     operation_id="generate_candidates",
     summary="Candidate paths of a planning request",
+    response_model=CandidatesResponse,
+    openapi_extra=PLANNING_BODY,
 )
-def candidates(
-    body: PlanningBody,
-) -> CandidatesResponse:
+async def candidates(request: Request, settings: SettingsDep, executor: PlanExecutorDep) -> Response:
     """`options.num_candidates` lateral paths from the ego (the points each keeps) + diagnostics."""
-    problem = to_problem(body)
-    ref = build_reference(problem.reference_line)
-    start = start_state(ref, problem)  # the start /v1/plan uses, so the candidates are the plan's
-    cs = generate_candidates(
-        ref, problem.lane, problem.ego, problem.vehicle, problem.options, start=start
-    )
-    return candidates_response(cs, ref, start)
+    return await compute(request, "candidates", settings, executor)

@@ -5,9 +5,10 @@ from __future__ import annotations
 from fastapi import APIRouter
 
 from app.conversions import demo_request
+from app.errors import ACCESS_RESPONSES
 from app.models.planning import PlanningRequest
 
-router = APIRouter(tags=["demo"])
+router = APIRouter(tags=["demo"], responses=ACCESS_RESPONSES)
 
 
 @router.get(

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request, Response
 
+from app.errors import ACCESS_RESPONSES
 from app.metrics import exposition
 
-router = APIRouter(tags=["operations"])
+router = APIRouter(tags=["operations"], responses=ACCESS_RESPONSES)
 
 _TEXT = {"schema": {"type": "string"}}
 

@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from app.routes import candidates as candidates_route
+from app import jobs as candidates_route
 
 
 def error_fields(response: Any) -> list[str]:

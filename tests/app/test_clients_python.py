@@ -1,6 +1,6 @@
 """The Python client material of openapi/clients/python, without a server or a network.
 
-The end-to-end run (a generated, pip-installed client planning the demo against uvicorn) is
+The end-to-end run (a generated, pip-installed client planning the demo against a live server) is
 ``.ci/clients.sh``; here: the checks of ``plan_demo.plan_problems`` catch what they are meant to, and
 a client generated from ``openapi/openapi.json`` and repaired by ``fix_generated.py`` reads and writes
 the app's real answers unchanged.

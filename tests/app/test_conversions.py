@@ -34,11 +34,16 @@ def test_problem_round_trip() -> None:
         assert type(a) is type(b) and a.id == b.id
 
 
+#: a request's budget and what it spent [ms]
+SPENT = {"budget_ms": 1000.0, "waited_ms": 2.5, "ran_ms": 30.0}
+
+
 def test_plan_data_is_the_response_model_json(demo_plan: PlanResult) -> None:
-    data = plan_data(demo_plan)
+    data = plan_data(demo_plan, SPENT)
     model = PlanResponse.model_validate_json(pydantic_core.to_json(data), strict=True)
     assert model.model_dump(mode="json", exclude_none=True) == data
     assert list(data["diagnostics"]["timing_ms"]) == list(STAGES)
+    assert data["diagnostics"]["request"] == SPENT
     assert len(data["trajectory"]) == demo_plan.trajectory.t.size
     assert data["trajectory"][-1]["v"] == pytest.approx(float(demo_plan.trajectory.v[-1]))
 
@@ -48,10 +53,10 @@ def test_plan_data_refuses_what_would_be_a_wrong_answer(demo_plan: PlanResult) -
     v[2] = np.inf
     broken = dataclasses.replace(demo_plan, trajectory=dataclasses.replace(demo_plan.trajectory, v=v))
     with pytest.raises(ValueError, match="the trajectory holds a non-finite number"):
-        plan_data(broken)
+        plan_data(broken, SPENT)
     with pytest.raises(ValueError, match="unknown plan status 'maybe'"):
-        plan_data(dataclasses.replace(demo_plan, status="maybe"))  # type: ignore[arg-type]
+        plan_data(dataclasses.replace(demo_plan, status="maybe"), SPENT)  # type: ignore[arg-type]
     timing = {**demo_plan.diagnostics.timing_ms, "speed": float("nan")}
     diagnostics = dataclasses.replace(demo_plan.diagnostics, timing_ms=timing)
     with pytest.raises(ValueError, match="the diagnostics hold"):
-        plan_data(dataclasses.replace(demo_plan, diagnostics=diagnostics))
+        plan_data(dataclasses.replace(demo_plan, diagnostics=diagnostics), SPENT)

@@ -19,7 +19,7 @@ def test_the_settings_dependency_decides_the_budget(demo: dict[str, Any]) -> Non
     client = TestClient(app)
     assert client.post("/v1/plan", json=demo).json()["status"] == "ok"
     app.dependency_overrides[get_settings] = lambda: Settings(plan_processes=0, time_budget_ms=1.0)
-    answer = client.post("/v1/plan", json=demo).json()
+    answer = client.post("/v1/plan", json=demo).json()  # 1 ms from arrival: spent before the plan starts
     assert answer["status"] == "fallback" and "time budget of 1 ms spent" in answer["message"]
 
 
@@ -27,11 +27,11 @@ def test_the_executor_dependency_runs_the_plans(demo: dict[str, Any]) -> None:
     calls: list[str] = []
 
     class Recording(PlanExecutor):
-        async def run(self, fn: Any, arg: Any) -> Any:
-            calls.append(fn.__name__)
-            return await super().run(fn, arg)
+        async def run(self, fn: Any, arg: Any, deadline: float | None = None) -> Any:
+            calls.append(f"{fn.__name__}({arg.kind})")
+            return await super().run(fn, arg, deadline)
 
     app = create_app(Settings(plan_processes=0))
     app.dependency_overrides[get_plan_executor] = lambda: Recording(processes=0, max_pending=1)
     assert TestClient(app).post("/v1/plan", json=demo).json()["status"] == "ok"
-    assert calls == ["compute_plan"]
+    assert calls == ["run_job(plan)"]

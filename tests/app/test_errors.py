@@ -34,11 +34,45 @@ def test_body_not_an_object(client: TestClient, body: str) -> None:
     expect(post(client, body), 422, "invalid_request", "")
 
 
-def test_many_problems_are_capped(client: TestClient) -> None:
-    r = post(client, {"reference_line": [["a", "b"]] * 500, "points": [[0, 0]]}, "/v1/frenet")
+def test_a_long_list_stops_at_its_first_bad_item(client: TestClient) -> None:
+    r = post(client, {"reference_line": [["a", "b"]] * 5000, "points": [[0, 0]]}, "/v1/frenet")
     assert r.status_code == 422
-    assert len(error_fields(r)) == 50
-    assert "1000 problems" in r.json()["error"]["message"]
+    assert error_fields(r) == ["reference_line.0.0", "reference_line.0.1"]
+
+
+def test_many_problems_are_capped(client: TestClient, demo: dict[str, Any]) -> None:
+    demo["obstacles"] = [{"id": f"o{i}", "circle": {"center": [0, 0], "radius": "x"}} for i in range(300)]
+    r = post(client, demo, "/v1/plan")
+    assert r.status_code == 422
+    fields = error_fields(r)
+    assert len(fields) == 50 and fields[0] == "obstacles.0.circle.radius"
+    assert "300 problems" in r.json()["error"]["message"]
+
+
+@pytest.mark.parametrize(
+    ("text", "field"),
+    [
+        ('{"reference_line": [[0, 0], [1, 0]], "points": [[0, 0]], "points": [[1, 1]]}', "points"),
+        (
+            '{"reference_line": [[0, 0], [10, 0]], "lane": {"left_width": 1, "right_width": 1}, '
+            '"ego": {"x": 1, "y": 0, "heading": 0}, '
+            '"obstacles": [{"id": "a", "circle": {"center": [5, 0], "radius": 1, "radius": 2}}]}',
+            "obstacles.0.circle.radius",
+        ),
+    ],
+)
+def test_a_duplicate_key_is_named(client: TestClient, text: str, field: str) -> None:
+    path = "/v1/frenet" if '"points"' in text else "/v1/plan"
+    r = post(client, text, path)
+    expect(r, 422, "duplicate_key", field)
+    assert repr(field.rsplit(".", 1)[-1]) in r.json()["error"]["details"][0]["message"]
+
+
+def test_a_body_with_more_arrays_than_any_request_is_refused_unparsed(client: TestClient) -> None:
+    text = '{"reference_line": [' + ",".join(["[]"] * 200_000) + '], "points": [[0, 0]]}'
+    r = post(client, text, "/v1/frenet")
+    expect(r, 422, "invalid_request", "")
+    assert "200003 JSON arrays" in r.json()["error"]["details"][0]["message"]
 
 
 @pytest.mark.parametrize(

@@ -6,6 +6,7 @@ the smallest accepted values still plan.
 
 from __future__ import annotations
 
+import json
 import math
 from typing import Any
 
@@ -19,6 +20,7 @@ from app.limits import (
     MIN_VEHICLE_ACCELERATION,
     MIN_VEHICLE_CURVATURE,
 )
+from app.settings import Settings
 from planner import problem as planner
 
 #: a denormal: positive, so `gt=0` let it through; braking distances v²/a overflowed to inf
@@ -122,3 +124,93 @@ def test_the_smallest_accepted_values_plan(client: TestClient, demo: dict[str, A
     assert answer.json()["status"] == "fallback"
     message = answer.json()["message"]
     assert "leaves the lane" in message or "max_curvature" in message, message
+
+
+#: numbers with the longest repr the limits allow (17 significant digits, sign, exponent-free)
+_LONG = -1234567.8901234567
+
+
+def largest_request() -> dict[str, Any]:
+    """A valid planning request at every size limit of the schema, each number as long as JSON writes
+    a float and each id escaped to six bytes a character: the largest body a client can need."""
+    n = api.MAX_REFERENCE_POINTS
+    road = [[_LONG + 0.9876543210987654 * i, 0.012345678901234567 * (-1) ** i] for i in range(n)]
+    per = api.MAX_OBSTACLE_POINTS // api.MAX_OBSTACLES
+    states = [
+        {"t": -123456.78901234567 + k, "x": _LONG, "y": _LONG, "heading": -123.45678901234568}
+        for k in range(per)
+    ]
+    obstacles = [
+        {
+            "id": f"{i:04d}" + "é" * (api.MAX_ID_LENGTH - 4),
+            "length": 4.1234567890123457,
+            "width": 1.8765432109876543,
+            "prediction": states,
+        }
+        for i in range(api.MAX_OBSTACLES)
+    ]
+    width = [3.1234567890123457] * n
+    return {
+        "reference_line": road,
+        "lane": {"left_width": width, "right_width": width},
+        "obstacles": obstacles,
+        "ego": {
+            "x": _LONG,
+            "y": _LONG,
+            "heading": -123.45678901234568,
+            "speed": 12.345678901234567,
+            "acceleration": -1.2345678901234567,
+            "curvature": -0.012345678901234567,
+        },
+        "vehicle": {
+            "length": 4.1234567890123457,
+            "width": 1.8765432109876543,
+            "max_speed": 12.345678901234567,
+            "max_acceleration": 1.2345678901234567,
+            "max_deceleration": 1.2345678901234567,
+            "max_lateral_acceleration": 1.2345678901234567,
+            "max_curvature": 0.12345678901234567,
+        },
+        "options": {
+            "horizon_time": 12.345678901234567,
+            "dt": 0.12345678901234567,
+            "target_speed": 12.345678901234567,
+            "num_candidates": api.MAX_TOTAL_CANDIDATE_POINTS // api.MAX_POINTS_PER_CANDIDATE,
+            "num_points": api.MAX_POINTS_PER_CANDIDATE,
+            "generator": "transf_kappa",
+            "seed": api.MAX_SEED,
+            "return_candidates": False,
+            "time_budget_ms": 12345.678901234567,
+        },
+    }
+
+
+def test_the_largest_valid_request_fits_the_body_limit() -> None:
+    from app.models.planning import PlanningRequest
+
+    data = largest_request()
+    body = json.dumps(data).encode()  # ", " and ": " separators, ASCII escapes: no smaller than a client's
+    assert len(body) <= api.MAX_BODY_BYTES == Settings().max_body_bytes, len(body)
+    request = PlanningRequest.model_validate(json.loads(body))
+    assert (
+        len(request.obstacles) == api.MAX_OBSTACLES
+        and len(request.reference_line) == api.MAX_REFERENCE_POINTS
+    )
+
+
+def test_one_predicted_state_more_than_the_limit_is_refused(client: TestClient, demo: dict[str, Any]) -> None:
+    per = api.MAX_OBSTACLE_POINTS // api.MAX_OBSTACLES
+    demo["obstacles"] = [
+        {
+            "id": f"o{i}",
+            "length": 1.0,
+            "width": 1.0,
+            "prediction": [
+                {"t": float(k), "x": 0.0, "y": 30.0, "heading": 0.0} for k in range(per + (i == 0))
+            ],
+        }
+        for i in range(api.MAX_OBSTACLES)
+    ]
+    r = client.post("/v1/plan", json=demo)
+    assert r.status_code == 422 and r.json()["error"]["details"][0]["field"] == "obstacles"
+    assert f"at most {api.MAX_OBSTACLE_POINTS}" in r.json()["error"]["details"][0]["message"]

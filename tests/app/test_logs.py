@@ -1,12 +1,13 @@
-"""app.logs: one JSON object per record, with the request id; uvicorn's logs in the same form."""
+"""app.logs: one JSON object per record, with the request id; the HTTP server's logs in the same form."""
 
 from __future__ import annotations
 
 import json
 import logging
+import logging.config
 from pathlib import Path
 
-from app.logs import REQUEST_ID, JSONFormatter, uvicorn_log_config
+from app.logs import REQUEST_ID, JSONFormatter, server_log_config
 
 
 def test_the_json_formatter() -> None:
@@ -27,7 +28,10 @@ def test_the_json_formatter() -> None:
     assert "request_id" not in json.loads(JSONFormatter().format(outside))
 
 
-def test_uvicorn_logs_are_json_too() -> None:
-    config = uvicorn_log_config("debug")
+def test_the_servers_logs_are_json_too() -> None:
+    config = server_log_config("debug")
     assert config["formatters"]["json"]["()"] == "app.logs.JSONFormatter"
-    assert config["loggers"]["app"]["level"] == config["loggers"]["uvicorn"]["level"] == "DEBUG"
+    assert config["loggers"]["app"]["level"] == config["loggers"]["_granian"]["level"] == "DEBUG"
+    assert config["loggers"]["_granian"]["propagate"] is True  # to the root's JSON handler
+    assert config["loggers"]["granian.access"]["propagate"] is False  # the service logs requests itself
+    logging.config.dictConfig({**config, "root": {"handlers": [], "level": "WARNING"}})  # a valid config

@@ -9,6 +9,8 @@ from prometheus_client.parser import text_string_to_metric_families
 
 from app.models.plan import STAGES
 
+JSON = {"content-type": "application/json"}
+
 
 def _samples(client: TestClient) -> dict[tuple[str, frozenset[tuple[str, str]]], float]:
     r = client.get("/metrics")
@@ -27,7 +29,7 @@ def test_metrics_count_plans_and_requests(client: TestClient, demo: dict[str, An
     before = _samples(client)
     answer = client.post("/v1/plan", json=demo).json()
     assert answer["status"] == "ok"
-    assert client.post("/v1/plan", content=b"[").status_code == 422
+    assert client.post("/v1/plan", content=b"[", headers=JSON).status_code == 422
     after = _samples(client)
 
     def delta(name: str, **labels: str) -> float:

@@ -45,6 +45,7 @@ def test_operations_are_tagged_and_named() -> None:
     }
     assert {(p, m): o["operationId"] for (p, m), o in ops.items()} == {
         ("/healthz", "get"): "healthz",
+        ("/readyz", "get"): "readyz",
         ("/v1/frenet", "post"): "to_frenet",
         ("/v1/cartesian", "post"): "to_cartesian",
         ("/v1/candidates", "post"): "generate_candidates",

@@ -68,3 +68,9 @@ def test_the_cpu_count_follows_the_cgroup_quota(monkeypatch: pytest.MonkeyPatch,
     monkeypatch.setenv("KAPPA_WORKERS", "4")
     monkeypatch.delenv("KAPPA_PLAN_PROCESSES", raising=False)
     assert Settings().plan_pool_size() == 16
+
+
+def test_the_bodies_in_flight_hold_at_least_the_largest_body() -> None:
+    with pytest.raises(ValueError, match="max_inflight_body_bytes"):
+        Settings(max_body_bytes=4096, max_inflight_body_bytes=2048)
+    assert Settings(max_body_bytes=4096, max_inflight_body_bytes=4096).max_inflight_body_bytes == 4096

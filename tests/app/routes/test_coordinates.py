@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from app.routes import coordinates as coordinates_route
+from app import jobs as coordinates_route
 from tests.app.helpers import post
 
 

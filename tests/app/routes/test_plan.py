@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+from app import jobs as plan_route
 from app.deps import get_plan_executor
-from app.executor import Overloaded, PlanExecutor
+from app.executor import DeadlineExceeded, Overloaded, PlanExecutor
 from app.main import app, create_app
 from app.models.plan import STAGES, PlanResponse
-from app.routes import plan as plan_route
 from app.settings import Settings
 from planner.pipeline import plan
 from planner.speed import ProfileKind
@@ -227,17 +227,31 @@ def test_answers_match_the_openapi_schema(client: TestClient, demo: dict[str, An
         _check(_plan(client, body), schema, components, "answer")
 
 
-def test_time_budget_from_the_request_or_the_server_default(demo: dict[str, Any]) -> None:
-    from app.main import create_app
-    from app.settings import Settings
+def test_the_budget_counts_from_the_arrival(demo: dict[str, Any], monkeypatch: pytest.MonkeyPatch) -> None:
+    """The planner gets what remains of the request's budget (the request's own, else the server's) once
+    the request has waited; a budget spent before the plan starts makes a braking fallback at once."""
+    budgets: list[float] = []
 
+    def recording(problem: Any) -> Any:
+        budgets.append(problem.options.time_budget_ms)
+        return plan(problem)
+
+    monkeypatch.setattr(plan_route, "plan", recording)
     tight = TestClient(create_app(Settings(plan_processes=0, time_budget_ms=1.0)))
     with tight:
-        answer = tight.post("/v1/plan", json=demo).json()  # the server's 1 ms default
+        answer = _plan(tight, demo)  # the server's 1 ms: spent before the plan starts
         assert answer["status"] == "fallback" and "time budget of 1 ms spent" in answer["message"]
         assert answer["trajectory"][-1]["v"] == pytest.approx(0.0, abs=1e-9)
+        assert budgets == [1.0]  # the smallest budget
+        budgets.clear()
         demo["options"]["time_budget_ms"] = 10_000.0  # the request's own budget wins
-        assert tight.post("/v1/plan", json=demo).json()["status"] == "ok"
+        out = _plan(tight, demo)
+        assert out["status"] == "ok"
+        spent = out["diagnostics"]["request"]
+        assert spent["budget_ms"] == 10_000.0 and spent["waited_ms"] > 0.0
+        (given,) = budgets
+        assert given == pytest.approx(10_000.0 - spent["waited_ms"], abs=0.01)
+        assert spent["ran_ms"] >= out["diagnostics"]["timing_ms"]["total"]
         demo["options"]["time_budget_ms"] = 0.0
         r = tight.post("/v1/plan", json=demo)
         assert r.status_code == 422
@@ -245,8 +259,14 @@ def test_time_budget_from_the_request_or_the_server_default(demo: dict[str, Any]
 
 
 class _FullExecutor(PlanExecutor):
-    async def run(self, fn: Any, arg: Any) -> Any:
+    async def run(self, fn: Any, arg: Any, deadline: float | None = None) -> Any:
         raise Overloaded("256 plans are queued or running")
+
+
+class _LateExecutor(PlanExecutor):
+    async def run(self, fn: Any, arg: Any, deadline: float | None = None) -> Any:
+        assert deadline is not None and arg.arrived + 9.9 < deadline <= arg.arrived + 10.0
+        raise DeadlineExceeded("no plan process became free before the deadline")
 
 
 def test_overload_is_a_503_to_retry(demo: dict[str, Any]) -> None:
@@ -296,3 +316,13 @@ def test_a_car_without_its_geometry_is_a_422_naming_the_field(
     r = client.post("/v1/plan", json={**demo, "vehicle": {**demo["vehicle"], **vehicle}})
     assert r.status_code == 422, r.text
     assert field in [d["field"] for d in r.json()["error"]["details"]]
+
+
+def test_a_plan_that_cannot_start_within_its_budget_is_a_503_to_retry(demo: dict[str, Any]) -> None:
+    app = create_app(Settings(plan_processes=0))
+    app.dependency_overrides[get_plan_executor] = lambda: _LateExecutor(processes=0, max_pending=1)
+    demo["options"]["time_budget_ms"] = 10_000.0  # the wait's deadline: 10 s from the arrival
+    r = TestClient(app).post("/v1/plan", json=demo)
+    assert r.status_code == 503 and r.headers["Retry-After"] == "1"
+    assert r.json()["error"]["code"] == "deadline_exceeded"
+    assert "total;dur=" in r.headers["Server-Timing"]

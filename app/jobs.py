@@ -1,0 +1,160 @@
+"""The work of the computing endpoints, as it runs in a plan process (:mod:`app.executor`).
+
+The worker hands over a :class:`Job` — the request body as bytes, the time it arrived and the server's
+default budget — and gets an :class:`Outcome` back — the answer's JSON as bytes and what the logs and
+metrics need: no pydantic model crosses between the processes, only bytes and a few numbers. All the
+CPU work happens here: parsing and validating the body (:mod:`app.intake`, at a cost bounded by its
+size), the computation, and writing the answer.
+
+**The deadline of a plan.** Its budget (``options.time_budget_ms``, else the server's) counts from the
+request's arrival (``time.monotonic()`` is the same clock in every process of the machine): what
+reading the body, waiting for a plan process and parsing took is gone from it, and the planner gets
+what remains (at least :data:`app.limits.MIN_TIME_BUDGET_MS`: a plan that starts with its budget spent
+ends at once as a braking ``fallback``). A request that finds no plan process free before its budget
+is gone is not started at all (503, :mod:`app.compute`). The answer says how long the request waited
+and ran (``diagnostics.request``).
+
+Refusals raise :class:`app.errors.RequestError` (422) or :class:`planner.errors.PlannerError`; the
+worker's handlers answer them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from typing import Literal
+
+import numpy as np
+import pydantic_core
+
+from app.conversions import (
+    candidates_data,
+    cartesian_data,
+    demo_request,
+    frenet_data,
+    plan_data,
+    to_problem,
+)
+from app.intake import Structure, parse
+from app.limits import (
+    MAX_ID_LENGTH,
+    MAX_OBSTACLE_POINTS,
+    MAX_OBSTACLES,
+    MAX_QUERY_POINTS,
+    MAX_REFERENCE_POINTS,
+    MIN_TIME_BUDGET_MS,
+)
+from app.models.coordinates import CartesianRequest, FrenetRequest
+from app.models.planning import PlanningRequest
+from planner.candidates import generate_candidates
+from planner.ego import start_state
+from planner.frenet import to_cartesian, to_frenet
+from planner.pipeline import plan
+from planner.reference import build_reference
+
+#: the most arrays and objects of a planning request: the reference line and its points, two width
+#: lists, the obstacles and each one's polygon, centre or prediction, every vertex; the root, lane,
+#: ego, vehicle and options, each obstacle and its circle, every predicted state; ids may hold either
+PLANNING_STRUCTURE = Structure(
+    arrays=4 + MAX_REFERENCE_POINTS + MAX_OBSTACLES + MAX_OBSTACLE_POINTS,
+    objects=5 + 2 * MAX_OBSTACLES + MAX_OBSTACLE_POINTS,
+    in_strings=MAX_OBSTACLES * MAX_ID_LENGTH,
+)
+#: the most arrays and objects of a /v1/frenet or /v1/cartesian request
+COORDINATES_STRUCTURE = Structure(arrays=2 + MAX_REFERENCE_POINTS + MAX_QUERY_POINTS, objects=1, in_strings=0)
+
+Kind = Literal["plan", "candidates", "frenet", "cartesian"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Job:
+    """What a plan process gets: the endpoint, the raw body, when the request arrived
+    (``time.monotonic()`` [s]) and the server's default budget [ms]."""
+
+    kind: Kind
+    body: bytes
+    arrived: float
+    default_budget_ms: float
+
+
+@dataclasses.dataclass(frozen=True)
+class Outcome:
+    """What a plan process sends back: the answer's JSON, when the process took the job up
+    (``time.monotonic()`` [s]) and, for a plan, its status and the planner's stage times [ms]."""
+
+    body: bytes
+    started: float = 0.0
+    plan_status: str | None = None
+    timing_ms: dict[str, float] | None = None
+
+
+def _elapsed_ms(since: float) -> float:
+    return 1e3 * (time.monotonic() - since)
+
+
+def _remaining_budget(job: Job, budget_ms: float) -> float:
+    """What remains of ``budget_ms`` since the request arrived [ms], at least the smallest budget."""
+    return max(MIN_TIME_BUDGET_MS, budget_ms - _elapsed_ms(job.arrived))
+
+
+def plan_job(job: Job) -> Outcome:
+    """``/v1/plan``: the planned trajectory, the planner given what remains of the budget."""
+    request = parse(job.body, PlanningRequest, PLANNING_STRUCTURE)
+    budget = request.options.time_budget_ms or job.default_budget_ms
+    remaining = _remaining_budget(job, budget)
+    started = time.monotonic()
+    waited = 1e3 * (started - job.arrived)
+    result = plan(to_problem(request, time_budget_ms=remaining))
+    spent = {"budget_ms": budget, "waited_ms": round(waited, 3), "ran_ms": round(_elapsed_ms(started), 3)}
+    data = plan_data(result, spent)
+    timing = {stage: round(float(ms), 3) for stage, ms in result.diagnostics.timing_ms.items()}
+    return Outcome(pydantic_core.to_json(data), plan_status=result.status, timing_ms=timing)
+
+
+def candidates_job(job: Job) -> Outcome:
+    """``/v1/candidates``: the candidate paths of a planning request (no plan: its budget bounds only
+    the wait for a plan process)."""
+    request = parse(job.body, PlanningRequest, PLANNING_STRUCTURE)
+    problem = to_problem(request)
+    ref = build_reference(problem.reference_line)
+    start = start_state(ref, problem)  # the start /v1/plan uses, so the candidates are the plan's
+    cs = generate_candidates(ref, problem.lane, problem.ego, problem.vehicle, problem.options, start=start)
+    return Outcome(pydantic_core.to_json(candidates_data(cs, ref, start)))
+
+
+def frenet_job(job: Job) -> Outcome:
+    """``/v1/frenet``: TransF-κ of each point."""
+    request = parse(job.body, FrenetRequest, COORDINATES_STRUCTURE)
+    ref = build_reference(request.reference_line)
+    fr = to_frenet(ref, np.asarray(request.points, dtype=float))
+    return Outcome(pydantic_core.to_json(frenet_data(fr)))
+
+
+def cartesian_job(job: Job) -> Outcome:
+    """``/v1/cartesian``: the Cartesian point of each (s, d)."""
+    request = parse(job.body, CartesianRequest, COORDINATES_STRUCTURE)
+    ref = build_reference(request.reference_line)
+    frenet = np.asarray(request.frenet, dtype=float)
+    xy = to_cartesian(ref, frenet[:, 0], frenet[:, 1])
+    return Outcome(pydantic_core.to_json(cartesian_data(xy)))
+
+
+JOBS: dict[Kind, Callable[[Job], Outcome]] = {
+    "plan": plan_job,
+    "candidates": candidates_job,
+    "frenet": frenet_job,
+    "cartesian": cartesian_job,
+}
+
+
+def run_job(job: Job) -> Outcome:
+    """The job's endpoint's work (the function a plan process runs), noting when it began."""
+    started = time.monotonic()
+    return dataclasses.replace(JOBS[job.kind](job), started=started)
+
+
+def warm_up() -> None:
+    """Plan the demo once, so that a process's first plan does not build the speed problem."""
+    body = demo_request().model_dump_json().encode()
+    plan_job(Job("plan", body, time.monotonic(), 60_000.0))
