@@ -299,6 +299,7 @@ class Result:
     health_failures: int
     slow_health: list[tuple[float, float]]  # (s after the start, ms) of the probes ≥ 50 ms
     cpu_ms: tuple[float, float, float] | None  # per plan: HTTP processes, plan processes, load generator
+    server_cpus: float | None  # CPU time of the servers' processes / wall time: the CPUs they got
     load_before: tuple[float, float, float]  # os.getloadavg()
     load_after: tuple[float, float, float]
 
@@ -331,6 +332,8 @@ def run(urls: list[str], args: argparse.Namespace, server_pids: list[int] | None
 
     ok = tally.statuses.get(200, 0)
     cpu_ms = None
+    wall_s = max(tally.last - tally.first, 1e-9)
+    server_cpus = sum(cpu_used.values()) / wall_s if cpu_used else None
     if cpu_used and ok:
         # granian (python -m app) serves in children of the process it was started as, whatever the
         # number of workers; plan processes are one level further down
@@ -342,7 +345,7 @@ def run(urls: list[str], args: argparse.Namespace, server_pids: list[int] | None
     return Result(
         servers=urls,
         ok=ok,
-        wall_s=max(tally.last - tally.first, 1e-9),
+        wall_s=wall_s,
         per_server=[tally.per_server[i] for i in range(len(urls))],
         latency_ms=percentiles(tally.latencies_ms, (50, 95, 99)),
         planner_ms=percentiles(tally.planner_ms, (50, 99)),
@@ -353,6 +356,7 @@ def run(urls: list[str], args: argparse.Namespace, server_pids: list[int] | None
         health_failures=health_failures,
         slow_health=[(t - started, ms) for t, ms in probes if ms >= 50.0],
         cpu_ms=cpu_ms,
+        server_cpus=server_cpus,
         load_before=load_before,
         load_after=os.getloadavg(),
     )
@@ -390,6 +394,9 @@ def report(result: Result, args: argparse.Namespace) -> None:
             f"CPU per plan [ms] HTTP processes {served:.1f}, plan processes {plans:.1f}, "
             f"this load generator {generator:.1f}"
         )
+    if result.server_cpus is not None:
+        given = args.replicas * args.cpus_per_replica if args.cpus_per_replica else os.cpu_count()
+        print(f"CPUs used         {result.server_cpus:.2f} by the servers (of {given} they may use)")
     before, after = (" ".join(f"{v:.2f}" for v in load) for load in (result.load_before, result.load_after))
     print(f"load average      {before} before, {after} after (1, 5, 15 min; other jobs slow the figures)")
 
