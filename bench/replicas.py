@@ -17,7 +17,8 @@ the same CPUs into replicas costs throughput (each replica brings its own worker
 load generator and other jobs on the machine share the CPUs: the load average is printed per run, and
 the exact command of each shape, to rerun at a quiet time. So are the CPUs the servers got (their CPU
 time over the wall time): a saturated shape that got fewer CPUs than it may use lost them to other jobs,
-and its plans per second say more about the machine than about the shape.
+and its plans per second say more about the machine than about the shape; its plans per CPU-second
+(plans per second over the CPUs it got) still compare the shapes' efficiency.
 """
 
 from __future__ import annotations
@@ -113,7 +114,8 @@ def main(argv: list[str] | None = None) -> int:
             sys.stdout.flush()
 
     columns = ["shape", "plans/s, each run", "median plans/s", "latency p50 / p99 [ms] (medians)"]
-    columns += ["errors", "non-200", "CPUs the servers got, each run", "load average (1 min) before each run"]
+    columns += ["errors", "non-200", "CPUs the servers got, each run", "plans per CPU-second (median)"]
+    columns += ["load average (1 min) before each run"]
     print("\n| " + " | ".join(columns) + " |")
     print("|" + " --- |" * len(columns))
     medians = {}
@@ -126,8 +128,10 @@ def main(argv: list[str] | None = None) -> int:
         others = sum(sum(r.others.values()) for r in runs)
         loads = ", ".join(f"{r.load_before[0]:.1f}" for r in runs)
         got = ", ".join(f"{r.server_cpus:.2f}" if r.server_cpus is not None else "?" for r in runs)
+        per_cpu = np.median([r.plans_per_s / r.server_cpus for r in runs if r.server_cpus])
         each = ", ".join(f"{x:.1f}" for x in rates)
-        cells = [shape, each, f"{medians[shape]:.1f}", f"{p50:.0f} / {p99:.0f}", errors, others, got, loads]
+        cells = [shape, each, f"{medians[shape]:.1f}", f"{p50:.0f} / {p99:.0f}", errors, others, got]
+        cells += [f"{per_cpu:.1f}", loads]
         print("| " + " | ".join(map(str, cells)) + " |")
     for a, b in (("2x1", "1x1"), ("2x1", "1x2")):
         if a in medians and b in medians and medians[b] > 0:
