@@ -402,6 +402,17 @@ def http(url: str, body: bytes | None = None, timeout: float = 60.0) -> tuple[in
         return exc.code, exc.read()
 
 
+def plan_demo(url: str) -> None:
+    """GET the demo from the server at ``url`` and POST it to /v1/plan: both must answer 200, the plan
+    with status ok."""
+    status, demo = http(f"{url}/v1/demo")
+    if status != 200:
+        raise ReplayError(f"GET /v1/demo answered {status}: {demo[:300]!r}")
+    status, answer = http(f"{url}/v1/plan", demo)
+    if status != 200 or b'"status":"ok"' not in answer.replace(b" ", b""):
+        raise ReplayError(f"POST /v1/plan of the demo answered {status}: {answer[:300]!r}")
+
+
 def wait_healthy(rt: Runtime, server: subprocess.Popen[bytes]) -> float:
     """Run the HEALTHCHECK until it passes; the time it took [s]."""
     interval = min(seconds(rt.health_flags.get("interval", "30s")), 1.0)  # poll faster than Docker
@@ -504,12 +515,7 @@ def main(argv: list[str] | None = None) -> int:
         say(f"== HEALTHCHECK passed after {took:.1f} s: {rt.healthcheck}")
 
         url = f"http://127.0.0.1:{port}"
-        status, demo = http(f"{url}/v1/demo")
-        if status != 200:
-            raise ReplayError(f"GET /v1/demo answered {status}: {demo[:300]!r}")
-        status, answer = http(f"{url}/v1/plan", demo)
-        if status != 200 or b'"status":"ok"' not in answer.replace(b" ", b""):
-            raise ReplayError(f"POST /v1/plan of the demo answered {status}: {answer[:300]!r}")
+        plan_demo(url)
         say("== GET /v1/demo → 200; POST /v1/plan (the demo) → 200, status ok")
         # the viewer's files are package data: the non-editable install must hold them
         for path in ("/viewer", "/viewer/viewer.js", "/viewer/run.schema.json"):
