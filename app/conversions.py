@@ -16,6 +16,7 @@ from typing import Any, get_args
 import numpy as np
 
 from app.models.candidates import CandidatesDiagnostics
+from app.models.goal import Goal, GoalCircle, GoalDisc, GoalPolygon
 from app.models.plan import STAGES, RequestTiming, TrajectoryPoint
 from app.models.planning import (
     AnyObstacle,
@@ -28,8 +29,10 @@ from app.models.planning import (
     PlanningRequest,
     PolygonObstacle,
     PredictedState,
+    Road,
     Vehicle,
 )
+from planner import goal as pg
 from planner import problem as pp
 from planner.candidates import CandidateSet
 from planner.ego import EgoFrenet
@@ -59,11 +62,21 @@ def _obstacle_to_problem(o: AnyObstacle) -> pp.Obstacle:
     return pp.DynamicObstacle(id=o.id, length=o.length, width=o.width, prediction=states)
 
 
+def _goal_to_problem(goal: Goal) -> pg.Goal:
+    position: pg.GoalPosition | None = None
+    if isinstance(goal.position, GoalPolygon):
+        position = pg.GoalPolygon(polygon=np.asarray(goal.position.polygon, dtype=float))
+    elif isinstance(goal.position, GoalCircle):
+        disc = goal.position.circle
+        position = pg.GoalCircle(center=np.asarray(disc.center, dtype=float), radius=disc.radius)
+    return pg.Goal(position=position, time=goal.time, speed=goal.speed)
+
+
 def to_problem(request: PlanningRequest, *, time_budget_ms: float | None = None) -> pp.PlanningProblem:
     """The planner's :class:`~planner.problem.PlanningProblem` of a validated request;
     ``time_budget_ms`` [ms], when given, is the plan's budget instead of the request's (the service
     passes what remains of the request's budget once it has waited, :mod:`app.jobs`)."""
-    options = request.options.model_dump()
+    options, r = request.options.model_dump(), request.road
     if time_budget_ms is not None:
         options["time_budget_ms"] = time_budget_ms
     return pp.PlanningProblem(
@@ -76,6 +89,8 @@ def to_problem(request: PlanningRequest, *, time_budget_ms: float | None = None)
         obstacles=tuple(_obstacle_to_problem(o) for o in request.obstacles),
         vehicle=pp.Vehicle(**request.vehicle.model_dump()),
         options=pp.Options(**options),
+        road=None if r is None else pp.Road(*map(_array, (r.left_width, r.right_width))),
+        goal=None if request.goal is None else _goal_to_problem(request.goal),
     )
 
 
@@ -99,6 +114,16 @@ def _obstacle_from_problem(o: pp.Obstacle) -> AnyObstacle:
         for t, x, y, h in np.asarray(o.prediction, dtype=float).tolist()
     ]
     return DynamicObstacle(id=o.id, length=float(o.length), width=float(o.width), prediction=states)
+
+
+def _goal_from_problem(goal: pg.Goal) -> Goal:
+    position: GoalPolygon | GoalCircle | None = None
+    if isinstance(goal.position, pg.GoalPolygon):
+        position = GoalPolygon(polygon=_points(goal.position.polygon))
+    elif isinstance(goal.position, pg.GoalCircle):
+        x, y = (float(v) for v in goal.position.center)
+        position = GoalCircle(circle=GoalDisc(center=(x, y), radius=float(goal.position.radius)))
+    return Goal(position=position, time=goal.time, speed=goal.speed)
 
 
 def from_problem(problem: pp.PlanningProblem) -> PlanningRequest:
@@ -125,6 +150,13 @@ def from_problem(problem: pp.PlanningProblem) -> PlanningRequest:
         ),
         vehicle=Vehicle(**{k: getattr(problem.vehicle, k) for k in Vehicle.model_fields}),
         options=Options(**{k: getattr(o, k) for k in Options.model_fields}),
+        road=None
+        if problem.road is None
+        else Road(
+            left_width=_width_from_problem(problem.road.left_width),
+            right_width=_width_from_problem(problem.road.right_width),
+        ),
+        goal=None if problem.goal is None else _goal_from_problem(problem.goal),
     )
 
 
