@@ -37,6 +37,7 @@ from planner import problem as pp
 from planner.candidates import CandidateSet
 from planner.ego import EgoFrenet
 from planner.frenet import FrenetPoints
+from planner.goal import GoalReason, GoalReport, GoalStatus
 from planner.reference import ReferenceLine
 from planner.result import PlanResult
 from planner.result import Status as PlanStatus
@@ -277,4 +278,20 @@ def plan_data(result: PlanResult, request_ms: Mapping[str, float]) -> dict[str, 
         "timing_ms": dict(zip(STAGES, timing, strict=True)),
         "request": {name: float(request_ms[name]) for name in RequestTiming.model_fields},
     }
+    if diag.goal is not None:
+        data["diagnostics"]["goal"] = goal_data(diag.goal)
+    return data
+
+
+def goal_data(report: GoalReport) -> dict[str, Any]:
+    """A plan's :class:`~planner.goal.GoalReport` as the JSON data of
+    :class:`~app.models.plan.GoalDiagnostics` (``t`` only when reached, ``reason`` only when
+    unreachable)."""
+    data: dict[str, Any] = {"status": GoalStatus(report.status).value}
+    if report.t is not None:
+        _require_finite("the goal's time", report.t)
+        data["t"] = float(report.t)
+    if report.reason is not None:
+        data["reason"] = GoalReason(report.reason).value
+    data["message"] = str(report.message)
     return data

@@ -8,11 +8,21 @@ position, ``t`` is inside the window and its speed inside the range, for each pa
 The dataclasses check their fields when they are built and raise
 :class:`~planner.errors.InvalidInputError` naming the field as the JSON request does
 (``goal.position.polygon``, ``goal.position.circle.radius``, ``goal.time``, ``goal.speed.1``).
+
+Which point must be inside: the footprint's centre, the trajectory point ``(x, y)`` of the answer (for a
+car, ``l_r`` ahead of the rear axle it is planned at), as CommonRoad's goal check tests a state's position;
+the region's boundary counts as inside. The speed is the trajectory's ``v`` (a car's rear axle's), within
+:data:`SPEED_TOLERANCE`; the time a sample's ``t`` (the trajectory is judged at its samples, every
+``options.dt``).
+
+What a plan says of its goal is a :class:`GoalReport`: ``reached`` (at its first ``t``), ``on_the_way`` or
+``unreachable`` with a typed :class:`GoalReason` (:mod:`planner.goal_report` judges it).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Any
 
 import numpy as np
@@ -23,6 +33,8 @@ from planner.reference import FloatArray
 
 #: a goal polygon must enclose more than this area [m²] (as an obstacle's polygon must)
 MIN_GOAL_AREA = 1e-6
+#: a speed within this of the goal's range [m/s] is in it (a standstill integrates to ±1e-12, not 0)
+SPEED_TOLERANCE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -99,3 +111,50 @@ class Goal:
             object.__setattr__(self, "time", _interval(self.time, "goal.time"))
         if self.speed is not None:
             object.__setattr__(self, "speed", _interval(self.speed, "goal.speed", minimum=0.0))
+
+
+class GoalStatus(StrEnum):
+    """What the plan's trajectory does with the goal."""
+
+    #: the trajectory meets every part of the goal given at some sample (the first one is reported)
+    REACHED = "reached"
+    #: it does not meet it within the horizon, which ends before the region or the window, and nothing
+    #: found prevents it
+    ON_THE_WAY = "on_the_way"
+    #: it does not meet it, and something prevents it (:class:`GoalReason`)
+    UNREACHABLE = "unreachable"
+
+
+class GoalReason(StrEnum):
+    """Why a goal cannot be met."""
+
+    #: the time window ended before now (``t_max < 0``)
+    WINDOW_ENDED = "window_ended"
+    #: the region lies behind the vehicle, which drives forwards only
+    BEHIND = "behind"
+    #: no point of the region is one the vehicle's centre can reach within the lane (or before the
+    #: reference's end)
+    OFF_ROAD = "off_road"
+    #: the region cannot be reached before the window ends, within the speed limit and acceleration
+    TOO_FAR = "too_far"
+    #: the trajectory passes the region before the window opens
+    TOO_EARLY = "too_early"
+    #: the speed range cannot be met: above the speed limit, or the vehicle cannot slow into it there
+    SPEED_RANGE = "speed_range"
+    #: the road or the traffic ahead stops the vehicle before the region
+    BLOCKED = "blocked"
+    #: the trajectory passes beside the region: the lateral plan cannot get into it
+    MISSED = "missed"
+    #: the plan fell back (a stage failed): its braking trajectory does not meet the goal
+    FALLBACK = "fallback"
+
+
+@dataclass(frozen=True)
+class GoalReport:
+    """What a plan says of its goal: ``status``; for ``reached`` the first time ``t`` [s] at which the
+    trajectory meets it; for ``unreachable`` the ``reason``; always a ``message`` in words."""
+
+    status: GoalStatus
+    message: str
+    t: float | None = None
+    reason: GoalReason | None = None
