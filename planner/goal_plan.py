@@ -18,17 +18,25 @@
   ``[σ_in, σ_out]`` (:func:`planner.goal_region.along_path`), entered and left ``m = min(margin,
   (σ_out − σ_in)/4)`` inside:
 
-  - a speed range reaching 0 is a stop inside: ``σ_stop`` at the middle of ``[σ_in + m, σ_out − m]``, or
-    later where the vehicle cannot stop there braking at ``deceleration_share`` of its deceleration,
-    at most ``σ_out − m`` (and not at all where even full braking cannot stop by then);
+  - a speed range reaching 0 is a stop inside, as soon as it comfortably can: ``σ_stop`` at ``σ_in + m``,
+    or later where the vehicle cannot stop there braking at ``a_c``, ``deceleration_share`` of its
+    deceleration, at most ``σ_out − m`` (and not at all where even full braking cannot stop by then);
+    where ``a_c`` can stop there, the limit keeps to its braking curve to ``m/2`` beyond the stop,
+    ``v ≤ √(c² + 2 a_c (σ_stop + m/2 − σ)) − c`` with ``c = a_c²/(2 j)`` (:func:`stop_distance` inverted;
+    the stop itself then ends it in finite time), so that the vehicle does not brake late and hard; and
+    not to brake early and creep (the cruise target makes standing still cost), it aims to keep up with
+    that approach, cruising (reached at half ``max_acceleration``) and then braking on that curve
+    (:func:`approach`), ``window_margin/2`` behind: at the stop by when it gets there, or where it is at
+    the horizon's end (a soft bound as the window's);
   - a time window ``[t_min, t_max]``, with ``m_t = min(window_margin, (t_max − t_min)/4)``: not late,
     ``σ(t_k) ≥ σ_in + m`` at the last knot ``t_k ≤ t_max − m_t`` (beyond the horizon ``T``:
     ``σ(T) ≥ σ_in + m − share · cap · (t_max − m_t − T)``), and — unless it stops inside, where arriving
     early is waiting — not early, ``σ(t_k) ≤ σ_out − m`` at the first knot ``t_k ≥ t_min + m_t``
     (beyond the horizon: at ``T``); soft bounds that every stop, obstacle, limit and follower outranks
     (:class:`solvers.speed_problem.SpeedWeights`);
-  - a speed range ``[v_min, v_max]`` otherwise: the limit at most ``v_max`` over the region (from where
-    the vehicle can have slowed to it), and a cruise target of at least ``v_min`` (within the cap).
+  - a speed range ``[v_min, v_max]`` otherwise: the limit at most ``v_max`` over the region, from where
+    the vehicle can have slowed to it at ``a_c`` (on that braking curve before it), and a cruise target
+    of at least ``v_min`` (within the cap).
 
   Without a region, the cruise target is the target within the speed range (and the cap).
 """
@@ -45,7 +53,15 @@ from planner.collision import FrenetBoxes, box_hits, footprint_extent
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.frenet import to_frenet
 from planner.goal import Goal, GoalReason
-from planner.goal_region import RegionOnReference, along_path, distance_to, inside, on_reference
+from planner.goal_region import (
+    MAX_PATH_SAMPLES,
+    PATH_STEP,
+    RegionOnReference,
+    along_path,
+    distance_to,
+    inside,
+    on_reference,
+)
 from planner.lane import lane_bounds
 from planner.problem import Options, PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
@@ -271,7 +287,7 @@ def stop_distance(v: float, a: float, decel: float, jerk: float) -> float:
     """Distance [m] to a standstill from ``v`` [m/s] at acceleration ``a`` [m/s²], braking at ``decel``
     [m/s²] reached at ``jerk`` [m/s³]: ``((v′ + c)² − c²)/(2 decel)`` with ``c = decel²/(2 jerk)`` (the
     speed profile's own braking margin, :mod:`solvers.speed_cost`), after releasing a positive ``a``
-    (``v′ = v + a²/(2 jerk)``, ``v·a/jerk`` metres on)."""
+    (``v′ = v + a²/(2 jerk)``, ``v·a/jerk`` metres on); a negative ``a`` is left out (conservative)."""
     return slow_distance(v, a, 0.0, decel, jerk)
 
 
@@ -308,30 +324,62 @@ def speed_aim(
     comfort = config.goal.deceleration_share * vehicle.max_deceleration
     steps, dt = profile_grid(problem.options, speed)
     t = np.arange(steps + 1, dtype=np.float64) * dt
-    stop = math.inf
+    stop, ceiling, lower = math.inf, None, None
     if setup.stops_inside:
         soft = stop_distance(ego.speed, ego.acceleration, comfort, speed.jerk)
         hard = stop_distance(ego.speed, ego.acceleration, vehicle.max_deceleration, speed.emergency_jerk)
         if hard <= leave:
-            stop = min(max(0.5 * (enter + leave), soft), leave)
-    lower = upper = None
+            stop = min(max(enter, soft), leave)
+        if soft <= stop < math.inf:
+            curve = (stop + 0.5 * margin, 0.0, comfort, speed.jerk)
+            ceiling = braking_curve(path.sigma, *curve)
+            sigma, clock = approach(stop, problem, setup.v_target, curve)
+            when, near = float(clock[-1]) + 0.5 * config.goal.window_margin, stop
+            if when > t[-1]:  # beyond the horizon: where the approach is at its end
+                near = float(np.interp(t[-1] - 0.5 * config.goal.window_margin, clock, sigma))
+            lower = _at_knot(t, min(when, t[-1]), near, -math.inf, late=False)
+    upper = None
     if goal.time is not None:
         t_min, t_max = goal.time
         spare = min(config.goal.window_margin, 0.25 * (t_max - t_min))
         t_min, t_max = t_min + spare, t_max - spare
         ahead = enter - config.goal.beyond_horizon_share * setup.cap * max(t_max - t[-1], 0.0)
-        lower = _at_knot(t, t_max, ahead, -math.inf, late=True)
+        by_window = _at_knot(t, t_max, ahead, -math.inf, late=True)
+        lower = by_window if lower is None or by_window is None else np.maximum(lower, by_window)
         if not setup.stops_inside and t_min > 0.0:
             upper = _at_knot(t, t_min, leave, math.inf, late=False)
         if lower is not None and upper is not None and np.any(lower > upper):  # a window within one step
             upper = np.maximum(upper, lower)
-    slow = None
     if goal.speed is not None and not setup.stops_inside and goal.speed[1] < setup.cap:
         v_max = goal.speed[1]
         start = max(enter, slow_distance(ego.speed, ego.acceleration, v_max, comfort, speed.jerk))
         if start <= leave:
-            slow = (start, sigma_out, v_max)
-    return SpeedAim(setup.cap, setup.v_target, stop, lower, upper, slow)
+            slowed = braking_curve(path.sigma, start, v_max, comfort, speed.jerk)
+            ceiling = np.where(path.sigma <= sigma_out, slowed, np.inf)
+    return SpeedAim(setup.cap, setup.v_target, stop, lower, upper, ceiling)
+
+
+def approach(
+    end: float, problem: PlanningProblem, cruise: float, curve: tuple[float, float, float, float]
+) -> tuple[FloatArray, FloatArray]:
+    """``(σ, t)``: when [s] a vehicle gets to each ``σ`` [m] of a fine grid up to ``end`` [m] from the ego's
+    speed, accelerating at half ``max_acceleration`` up to ``cruise`` [m/s], below :func:`braking_curve` of
+    ``curve``: ``∫ dσ / v`` (trapezoids, ``v`` at least 0.1 m/s)."""
+    sigma = np.linspace(0.0, max(end, 0.0), int(np.clip(end / PATH_STEP, 2, MAX_PATH_SAMPLES)))
+    v0, accel = problem.ego.speed, 0.5 * problem.vehicle.max_acceleration
+    speed = np.sqrt(v0 * v0 + 2.0 * accel * sigma)
+    speed = np.minimum(np.minimum(speed, max(cruise, 0.1)), braking_curve(sigma, *curve))
+    pace = 1.0 / np.maximum(speed, 0.1)
+    return sigma, np.concatenate(([0.0], np.cumsum(0.5 * (pace[1:] + pace[:-1]) * np.diff(sigma))))
+
+
+def braking_curve(sigma: FloatArray, at: float, v_at: float, decel: float, jerk: float) -> FloatArray:
+    """The highest speed [m/s] at ``sigma`` [m] from which braking at ``decel`` [m/s²], reached at ``jerk``
+    [m/s³], gets down to ``v_at`` [m/s] by ``at`` [m]: ``√((v_at + c)² + 2 decel (at − σ)) − c``, ``c =
+    decel²/(2 jerk)``; ``v_at`` from ``at`` on (0 for a stop: standstill)."""
+    c = decel * decel / (2.0 * jerk)
+    ahead = np.maximum(at - sigma, 0.0)
+    return np.asarray(np.sqrt((v_at + c) ** 2 + 2.0 * decel * ahead) - c)
 
 
 def _at_knot(t: FloatArray, when: float, value: float, free: float, *, late: bool) -> FloatArray | None:

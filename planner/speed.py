@@ -92,8 +92,7 @@ class SpeedAim:
         stop: a stop ``σ ≤ stop`` (the lower of it and the path's own; ``+inf``: none).
         lower, upper: the soft bounds ``goal_lower``, ``goal_upper`` on ``σ`` at the profile's knots [m]
             (:class:`solvers.speed_problem.SpeedProblem`), or None.
-        slow: ``(σ_from, σ_to, v_max)``: the limit at most ``v_max`` [m/s] over ``[σ_from, σ_to]`` [m], or
-            None.
+        ceiling: a limit [m/s] at the path's knots the speed limit is lowered to, or None.
     """
 
     cap: float
@@ -101,14 +100,11 @@ class SpeedAim:
     stop: float = math.inf
     lower: FloatArray | None = None
     upper: FloatArray | None = None
-    slow: tuple[float, float, float] | None = None
+    ceiling: FloatArray | None = None
 
-    def limited(self, sigma: FloatArray, limit: FloatArray) -> FloatArray:
-        """The speed limit ``limit`` [m/s] at the path's knots ``sigma`` [m], with ``slow`` applied."""
-        if self.slow is None:
-            return limit
-        start, end, v_max = self.slow
-        return np.where((sigma >= start) & (sigma <= end), np.minimum(limit, v_max), limit)
+    def limited(self, limit: FloatArray) -> FloatArray:
+        """The speed limit ``limit`` [m/s] at the path's knots, lowered to ``ceiling``."""
+        return limit if self.ceiling is None else np.minimum(limit, self.ceiling)
 
 
 @dataclass(frozen=True)
@@ -228,7 +224,7 @@ def _solve(
     if aim is None:
         limit, v_target = speed_limit(path, problem, config), target_speed(problem)
     else:
-        limit, v_target = aim.limited(path.sigma, speed_limit(path, problem, config, aim.cap)), aim.v_target
+        limit, v_target = aim.limited(speed_limit(path, problem, config, aim.cap)), aim.v_target
     sp = _speed_problem(
         path,
         problem,

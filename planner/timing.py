@@ -53,7 +53,8 @@ class StageTimer:
             return None
         reserve = "" if self._deadline_ms == self._budget_ms else ", the rest kept for the fallback"
         return (
-            f"time budget of {self._budget_ms:g} ms spent after the {stage} stage ({elapsed:.0f} ms{reserve})"
+            f"time budget of {self._budget_ms:g} ms spent after the {stage} stage "
+            f"({elapsed:.0f} ms{reserve})"
         )
 
     @contextmanager
