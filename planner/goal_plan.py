@@ -11,9 +11,11 @@
   region beside the reference draws the choice to the candidates that run into it.
 * **The lateral QP** (:func:`toward_region`): over that interval the chosen candidate's offsets are moved
   into the region where they lie beside it (``margin`` inside its edge, no more than needed), blended in
-  and out over ``max(2 L, 1.5 s · v)``, and scaled against the QP's pull towards the reference
-  (``(w_ref + w_offset)/w_ref``, :class:`solvers.lateral_qp.LateralWeights`); not where the moved
-  footprint would meet a static obstacle (the candidate's own offsets then stay).
+  over ``max(2 L, 1.5 s · v)`` before it, back to the candidate's at its end (the QP smooths the step,
+  leaving the region late rather than early, and keeps to its obstacle bounds beyond), and scaled
+  against the QP's pull towards the reference (``(w_ref + w_offset)/w_ref``,
+  :class:`solvers.lateral_qp.LateralWeights`); not where the moved footprint would meet a static obstacle
+  up to the region's end (the candidate's own offsets then stay).
 * **The speed profile** (:func:`speed_aim`), where the path's centre is inside the region over
   ``[σ_in, σ_out]`` (:func:`planner.goal_region.along_path`), entered and left ``m = min(margin,
   (σ_out − σ_in)/4)`` inside:
@@ -265,14 +267,14 @@ def toward_region(
     first, last = np.flatnonzero(within)[[0, -1]]
     blend = max(2.0 * vehicle.length, 1.5 * problem.ego.speed)
     before = _smoothstep((s - (s[first] - blend)) / blend) * shift[first]
-    after = _smoothstep(((s[last] + blend) - s) / blend) * shift[last]
-    shift = np.where(within, shift, np.where(s < s[first], before, after))
+    shift = np.where(within, shift, np.where(s < s[first], before, 0.0))
     band = lane_bounds(
         ref, problem.lane, s, half_width=0.5 * vehicle.width, margin=problem.options.lateral_margin
     )
     moved = np.clip(d + shift, band.lower, np.maximum(band.upper, band.lower))
     heading = np.arctan(np.gradient(moved, s)) if s.size > 1 else np.zeros_like(s)
-    if np.any(box_hits(boxes, s, moved, footprint_extent(heading, vehicle, config.obstacle_margin))):
+    hits = box_hits(boxes, s, moved, footprint_extent(heading, vehicle, config.obstacle_margin))
+    if np.any(hits[: last + 1]):
         return d
     return np.asarray(moved)
 

@@ -256,6 +256,7 @@ def test_offsets_move_into_the_region_unless_that_meets_an_obstacle() -> None:
     assert np.all(moved[over] >= 1.2 + 0.3) and np.all(moved[over] <= 3.5 - 0.9 - 0.2 + 1e-9)
     assert np.all(moved[s < EGO_X + 50.0 - 1.5 * 10.0 - 1e-9] == 0.0)  # blended in over 1.5 s of driving
     assert np.all(np.diff(moved[s < EGO_X + 50.0]) >= -1e-12)
+    assert np.all(moved[s > EGO_X + 70.0 + 0.5] == 0.0)  # back to the candidate's after it (the QP smooths)
     assert toward_region(None, ref, s, d, empty, problem) is d
     car = PolygonObstacle("parked", np.array([[55.0, 1.0], [75.0, 1.0], [75.0, 3.4], [55.0, 3.4]]))
     blocked = replace(problem, obstacles=(car,))
