@@ -20,16 +20,18 @@
   ``[σ_in, σ_out]`` (:func:`planner.goal_region.along_path`), entered and left ``m = min(margin,
   (σ_out − σ_in)/4)`` inside:
 
-  - a speed range reaching 0 is a stop inside, as soon as it comfortably can: ``σ_stop`` at ``σ_in + m``,
-    or later where the vehicle cannot stop there braking at ``a_c``, ``deceleration_share`` of its
-    deceleration, at most ``σ_out − m`` (and not at all where even full braking cannot stop by then);
+  - a speed range reaching 0 is a stop inside, as soon as it comfortably can: ``σ_stop`` at the region's
+    entry (``m`` in), else its middle, else its exit (``m`` before it) — points fixed on the reference, so
+    that the stop does not creep on from cycle to cycle —, the first one the vehicle can stop at braking
+    at ``a_c``, ``deceleration_share`` of its deceleration (the exit also where only full braking can; no
+    stop where not even that can);
     where ``a_c`` can stop there, the limit keeps to its braking curve to ``m/2`` beyond the stop,
     ``v ≤ √(c² + 2 a_c (σ_stop + m/2 − σ)) − c`` with ``c = a_c²/(2 j)`` (:func:`stop_distance` inverted;
     the stop itself then ends it in finite time), so that the vehicle does not brake late and hard; and
     not to brake early and creep (the cruise target makes standing still cost), it aims to keep up with
     that approach, cruising (reached at half ``max_acceleration``) and then braking on that curve
-    (:func:`approach`), ``window_margin/2`` behind: at the stop by when it gets there, or where it is at
-    the horizon's end (a soft bound as the window's);
+    (:func:`approach`), :data:`APPROACH_SLACK` behind: at the stop by when it gets there, or where it is
+    at the horizon's end (a soft bound as the window's);
   - a time window ``[t_min, t_max]``, with ``m_t = min(window_margin, (t_max − t_min)/4)``: not late,
     ``σ(t_k) ≥ σ_in + m`` at the last knot ``t_k ≤ t_max − m_t`` (beyond the horizon ``T``:
     ``σ(T) ≥ σ_in + m − share · cap · (t_max − m_t − T)``), and — unless it stops inside, where arriving
@@ -70,6 +72,11 @@ from planner.reference import FloatArray, ReferenceLine
 from planner.speed import SpeedAim, profile_grid, target_speed
 from planner.trajectory import Path
 from solvers.lateral_qp import LateralWeights
+
+#: a stop inside aims to keep up with its comfortable approach this far behind it [s]
+APPROACH_SLACK = 0.2
+#: a stop point inside this share of the comfortable stopping distance away is taken still [-]
+STOP_TOLERANCE = 0.9
 
 
 @dataclass(frozen=True)
@@ -287,21 +294,36 @@ def _smoothstep(u: FloatArray) -> FloatArray:
 
 def stop_distance(v: float, a: float, decel: float, jerk: float) -> float:
     """Distance [m] to a standstill from ``v`` [m/s] at acceleration ``a`` [m/s²], braking at ``decel``
-    [m/s²] reached at ``jerk`` [m/s³]: ``((v′ + c)² − c²)/(2 decel)`` with ``c = decel²/(2 jerk)`` (the
-    speed profile's own braking margin, :mod:`solvers.speed_cost`), after releasing a positive ``a``
-    (``v′ = v + a²/(2 jerk)``, ``v·a/jerk`` metres on); a negative ``a`` is left out (conservative)."""
+    [m/s²] reached at ``jerk`` [m/s³] (:func:`slow_distance`)."""
     return slow_distance(v, a, 0.0, decel, jerk)
 
 
 def slow_distance(v: float, a: float, v_to: float, decel: float, jerk: float) -> float:
-    """Distance [m] to slow from ``v`` [m/s] at acceleration ``a`` [m/s²] to ``v_to`` [m/s] (as
-    :func:`stop_distance`); 0 when ``v`` is not above it."""
-    release = max(a, 0.0) / jerk
-    v_top = v + 0.5 * max(a, 0.0) * release
-    if v_top <= v_to:
+    """Distance [m] to slow from ``v`` [m/s] at acceleration ``a`` [m/s²] to ``v_to`` [m/s], braking at
+    ``decel`` [m/s²] reached at ``jerk`` [m/s³]; 0 when ``v`` is not above it.
+
+    A positive ``a`` is released first (``v·a/jerk`` metres on, ``v′ = v + a²/(2 jerk)``), then
+    ``((v′ + c)² − (v_to + c)²)/(2 decel)`` with ``c = decel²/(2 jerk)`` (the speed profile's own braking
+    margin, :mod:`solvers.speed_cost`). Braking already (``a ≤ 0``): the ramp from ``a`` to ``−b``, ``b =
+    max(decel, −a)``, then ``−b``, exactly (the ramp alone where it slows enough).
+    """
+    if a > 0.0:
+        release = a / jerk
+        v_top = v + 0.5 * a * release
+        if v_top <= v_to:
+            return 0.0
+        c = decel * decel / (2.0 * jerk)
+        return v * release + ((v_top + c) ** 2 - (v_to + c) ** 2) / (2.0 * decel)
+    if v <= v_to:
         return 0.0
-    c = decel * decel / (2.0 * jerk)
-    return v * release + ((v_top + c) ** 2 - (v_to + c) ** 2) / (2.0 * decel)
+    b = max(decel, -a)
+    ramp = (a + b) / jerk
+    v_ramp = v + a * ramp - 0.5 * jerk * ramp * ramp
+    if v_ramp <= v_to:  # slows enough on the ramp: v + a τ − j τ²/2 = v_to
+        tau = (a + math.sqrt(a * a + 2.0 * jerk * (v - v_to))) / jerk
+        return v * tau + 0.5 * a * tau * tau - jerk * tau**3 / 6.0
+    s_ramp = v * ramp + 0.5 * a * ramp * ramp - jerk * ramp**3 / 6.0
+    return s_ramp + (v_ramp * v_ramp - v_to * v_to) / (2.0 * b)
 
 
 def speed_aim(
@@ -330,16 +352,27 @@ def speed_aim(
     if setup.stops_inside:
         soft = stop_distance(ego.speed, ego.acceleration, comfort, speed.jerk)
         hard = stop_distance(ego.speed, ego.acceleration, vehicle.max_deceleration, speed.emergency_jerk)
-        if hard <= leave:
-            stop = min(max(enter, soft), leave)
+        # fixed in space, not a braking distance from the vehicle (which would creep on from cycle to
+        # cycle): the region's entry, middle and exit on the reference, the first one it can stop at
+        assert region.reachable  # for mypy: a path that runs inside runs over the lane's band
+        s_in, s_out = region.s_in, region.s_out
+        inset = min(config.goal.margin, 0.25 * (s_out - s_in))
+        marks = np.array([s_in + inset, 0.5 * (s_in + s_out), s_out - inset]) - vehicle.rear_offset
+        points = np.clip(np.interp(marks, path.s, path.sigma), enter, leave)
+        if np.any(points >= STOP_TOLERANCE * soft):  # (a little harder than comfortable is fine)
+            stop = float(points[np.argmax(points >= STOP_TOLERANCE * soft)])
+        elif hard <= sigma_out:  # the exit (or, already close to it, as soon as it can: inside still)
+            stop = min(max(leave, hard), sigma_out)
         if soft <= stop < math.inf:
             curve = (stop + 0.5 * margin, 0.0, comfort, speed.jerk)
             ceiling = braking_curve(path.sigma, *curve)
             sigma, clock = approach(stop, problem, setup.v_target, curve)
-            when, near = float(clock[-1]) + 0.5 * config.goal.window_margin, stop
+            slack = APPROACH_SLACK
+            when, near = float(clock[-1]) + slack, stop
             if when > t[-1]:  # beyond the horizon: where the approach is at its end
-                near = float(np.interp(t[-1] - 0.5 * config.goal.window_margin, clock, sigma))
-            lower = _at_knot(t, min(when, t[-1]), near, -math.inf, late=False)
+                near = float(np.interp(t[-1] - slack, clock, sigma))
+            if near > 0.0:  # (standing at the stop already: nothing to ask)
+                lower = _at_knot(t, min(when, t[-1]), near, -math.inf, late=False)
     upper = None
     if goal.time is not None:
         t_min, t_max = goal.time

@@ -191,18 +191,20 @@ def test_the_speed_cap_is_the_speed_limit_only_where_the_goal_needs_it() -> None
     assert candidate_options(None, capped.options) is capped.options
 
 
-@pytest.mark.parametrize(("v", "a"), [(10.0, 0.0), (10.0, 1.5), (3.0, -2.0), (25.0, 0.0)])
+@pytest.mark.parametrize(("v", "a"), [(10.0, 0.0), (10.0, 1.5), (3.0, -2.0), (8.0, -5.0), (25.0, 0.0)])
 def test_the_stop_distance_is_the_speed_profiles_braking_margin(v: float, a: float) -> None:
     decel, jerk = 3.0, 8.0
-    # simulated: release a positive acceleration, ramp to −decel at the jerk, hold it (fine steps)
+    # simulated: release a positive acceleration, ramp to −decel at the jerk (or hold a harder brake)
     dt, s, speed, acc = 1e-4, 0.0, v, a
+    target = -max(decel, -a)
     while speed > 0.0:
-        target = -decel
         acc = max(acc - jerk * dt, target)
         speed += acc * dt
         s += max(speed, 0.0) * dt
     assert stop_distance(v, a, decel, jerk) >= s - 0.05  # never short of it …
-    if a >= 0.0:  # … nor much beyond (braking already, it is conservative: it ramps from 0)
+    if a <= 0.0:  # … exact when braking already
+        assert stop_distance(v, a, decel, jerk) == pytest.approx(s, abs=0.01)
+    else:  # … and not much beyond it after releasing an acceleration
         assert stop_distance(v, a, decel, jerk) <= s + 0.05 + v * a / jerk
     assert slow_distance(v, a, v + 1.0 + max(a, 0.0), decel, jerk) == 0.0
     assert 0.0 < slow_distance(v, a, 0.5 * v, decel, jerk) < stop_distance(v, a, decel, jerk)
@@ -291,3 +293,37 @@ def test_the_speed_terms_stop_inside_and_bound_the_window_at_its_knots() -> None
     assert np.all(aim.ceiling[over] <= 5.0 + 1e-9) and np.all(np.isinf(aim.ceiling[path.sigma > 60.1]))
     assert np.all(np.diff(aim.ceiling[path.sigma < 50.0]) <= 1e-12)
     assert speed_aim(None, path, through) is None
+
+
+def _closed_loop(problem: PlanningProblem, seconds: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Replan every 0.1 s from the plan's own state 0.1 s on (perfect tracking), the goal's window
+    moving with the clock: the times, and the centre's x and speed then."""
+    goal = problem.goal
+    assert goal is not None
+    t, x, v = [], [], []
+    for k in range(round(seconds / 0.1)):
+        now = 0.1 * k
+        window = None if goal.time is None else (goal.time[0] - now, goal.time[1] - now)
+        traj = plan(replace(problem, goal=replace(goal, time=window))).trajectory
+        t.append(now)
+        x.append(traj.x[0])
+        v.append(traj.v[0])
+        ego = Ego(traj.x[1], traj.y[1], traj.heading[1], traj.v[1], traj.a[1], traj.curvature[1])
+        problem = replace(problem, ego=ego)
+    return np.array(t), np.array(x), np.array(v)
+
+
+def test_in_closed_loop_a_stop_inside_stays_put_and_a_window_is_met() -> None:
+    # the stop: at the region's entry once and for all (a stop point relative to the vehicle would creep on)
+    stop = straight_problem(Goal(box(EGO_X + 50.0, EGO_X + 60.0, -1.75, 1.75), speed=(0.0, 0.0)))
+    t, x, v = _closed_loop(stop, 10.0)
+    standing = t >= 8.0
+    assert np.all(v[standing] < 1e-3), v[standing]
+    assert np.all((x[standing] >= EGO_X + 50.0) & (x[standing] <= EGO_X + 60.0))
+    assert np.ptp(x[standing]) < 1e-3
+    # the window: inside between 6 and 8 s (from the start), above the target, within the limit
+    region = box(EGO_X + 95.0, EGO_X + 115.0, -1.75, 1.75)
+    hurry = straight_problem(Goal(region, time=(6.0, 8.0)), speed_limit=16.0)
+    t, x, v = _closed_loop(hurry, 8.05)
+    inside_then = (x >= EGO_X + 95.0) & (x <= EGO_X + 115.0) & (t >= 6.0 - 1e-9)
+    assert inside_then.any() and v.max() <= 16.0 + 1e-3
