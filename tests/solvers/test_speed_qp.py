@@ -74,8 +74,8 @@ def test_qps_on_bound_arrays_agree_with_casadis_ordinary_call(lower: bool, goal:
         assert np.array_equal(qp.lam_g, reference["lam_g"].full().ravel())
 
 
-def test_named_columns_and_rows_are_what_they_say() -> None:
-    problem = make_problem(v0=15.0, s_stop=60.0, **_LIMIT)
+def _solved_at_guess(problem: SpeedProblem) -> SpeedQP:
+    """The problem's QP solved once, linearised at :func:`_guess` (it must succeed)."""
     qp = _qp(problem)
     e, d, _, _ = local_model(problem, _guess(problem), problem.v0)
     qp.limit_rows[...] = e
@@ -83,6 +83,12 @@ def test_named_columns_and_rows_are_what_they_say() -> None:
     qp.p[P_V_HAT] = problem.v0
     flag, _ = qp.solve()
     assert flag == HpipmStatus.SUCCESS
+    return qp
+
+
+def test_named_columns_and_rows_are_what_they_say() -> None:
+    problem = make_problem(v0=15.0, s_stop=60.0, **_LIMIT)
+    qp = _solved_at_guess(problem)
     n, dt = problem.steps, problem.dt
     stages = np.vstack([qp.x[: qp.width * n].reshape(n, qp.width), np.append(qp.x[-3:], [0.0] * 3)])
     s, v, a, j = (stages[:, col] for col in (COL_S, COL_V, COL_A, COL_JERK))
@@ -108,14 +114,8 @@ def test_the_goal_slack_columns_measure_what_the_goal_rows_miss(aim: str) -> Non
     else:
         lower[80] = 150.0
     problem = make_problem(v0=10.0, v_target=10.0, goal_upper=upper, goal_lower=lower)
-    qp = _qp(problem)
+    qp = _solved_at_guess(problem)
     assert qp.col_goal == qp.width - 2 and qp.row_goal == qp.rows - 2
-    e, d, _, _ = local_model(problem, _guess(problem), problem.v0)
-    qp.limit_rows[...] = e
-    qp.slopes[...] = d
-    qp.p[P_V_HAT] = problem.v0
-    flag, _ = qp.solve()
-    assert flag == HpipmStatus.SUCCESS
     n = problem.steps
     stages = qp.x[: qp.width * n].reshape(n, qp.width)  # stage k holds the slacks of knot k + 1
     s = np.append(stages[:, COL_S], qp.x[-3])
