@@ -167,6 +167,14 @@ def demo_request() -> PlanningRequest:
     return from_problem(demo_problem())
 
 
+@cache
+def demo_goal() -> Goal:
+    """A goal past the demo's U-turn: stop in the box after it, between 5 and 9 s from now."""
+    return Goal.model_validate(
+        {"position": {"polygon": [[-4, 13], [4, 13], [4, 19], [-4, 19]]}, "time": [5, 9], "speed": [0, 0.5]}
+    )
+
+
 # -- answers -----------------------------------------------------------------------------------
 
 

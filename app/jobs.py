@@ -31,6 +31,7 @@ import pydantic_core
 from app.conversions import (
     candidates_data,
     cartesian_data,
+    demo_goal,
     demo_request,
     frenet_data,
     plan_data,
@@ -158,6 +159,8 @@ def run_job(job: Job) -> Outcome:
 
 
 def warm_up() -> None:
-    """Plan the demo once, so that a process's first plan does not build the speed problem."""
-    body = demo_request().model_dump_json().encode()
-    plan_job(Job("plan", body, time.monotonic(), 60_000.0))
+    """Plan the demo once, and once with a goal, so that a process's first plan does not build the speed
+    problem (a goal's has a QP of its own)."""
+    demo = demo_request()
+    for request in (demo, demo.model_copy(update={"goal": demo_goal()})):
+        plan_job(Job("plan", request.model_dump_json().encode(), time.monotonic(), 60_000.0))

@@ -12,8 +12,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from app.conversions import demo_request
-from app.models.goal import Goal
+from app.conversions import demo_goal, demo_request
 from app.models.planning import PlanningRequest
 
 #: the models of the request bodies (their schemas go in the document's components)
@@ -34,10 +33,6 @@ DEMO_EXAMPLE = {
     "summary": "The demo U-turn (GET /v1/demo)",
     "value": demo_request().model_dump(mode="json", exclude_none=True),
 }
-#: a goal beyond the demo's U-turn: stop in the box after it, between 5 and 9 s from now
-GOAL = Goal.model_validate(
-    {"position": {"polygon": [[-4, 13], [4, 13], [4, 19], [-4, 19]]}, "time": [5, 9], "speed": [0, 0.5]}
-)
 
 #: the body of ``/v1/candidates``, with the demo request as its example
 PLANNING_BODY = json_body(PlanningRequest, {"demo": DEMO_EXAMPLE})
@@ -49,7 +44,7 @@ PLAN_BODY = json_body(
         "goal": {
             "summary": "The demo with a goal: stop past the U-turn between 5 and 9 s from now",
             "value": demo_request()
-            .model_copy(update={"goal": GOAL})
+            .model_copy(update={"goal": demo_goal()})
             .model_dump(mode="json", exclude_none=True),
         },
     },
