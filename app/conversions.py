@@ -16,6 +16,7 @@ from typing import Any, get_args
 import numpy as np
 
 from app.models.candidates import CandidatesDiagnostics
+from app.models.goal import Goal, GoalCircle, GoalDisc, GoalPolygon
 from app.models.plan import STAGES, RequestTiming, TrajectoryPoint
 from app.models.planning import (
     AnyObstacle,
@@ -28,12 +29,15 @@ from app.models.planning import (
     PlanningRequest,
     PolygonObstacle,
     PredictedState,
+    Road,
     Vehicle,
 )
+from planner import goal as pg
 from planner import problem as pp
 from planner.candidates import CandidateSet
 from planner.ego import EgoFrenet
 from planner.frenet import FrenetPoints
+from planner.goal import GoalReason, GoalReport, GoalStatus
 from planner.reference import ReferenceLine
 from planner.result import PlanResult
 from planner.result import Status as PlanStatus
@@ -59,11 +63,21 @@ def _obstacle_to_problem(o: AnyObstacle) -> pp.Obstacle:
     return pp.DynamicObstacle(id=o.id, length=o.length, width=o.width, prediction=states)
 
 
+def _goal_to_problem(goal: Goal) -> pg.Goal:
+    position: pg.GoalPosition | None = None
+    if isinstance(goal.position, GoalPolygon):
+        position = pg.GoalPolygon(polygon=np.asarray(goal.position.polygon, dtype=float))
+    elif isinstance(goal.position, GoalCircle):
+        disc = goal.position.circle
+        position = pg.GoalCircle(center=np.asarray(disc.center, dtype=float), radius=disc.radius)
+    return pg.Goal(position=position, time=goal.time, speed=goal.speed)
+
+
 def to_problem(request: PlanningRequest, *, time_budget_ms: float | None = None) -> pp.PlanningProblem:
     """The planner's :class:`~planner.problem.PlanningProblem` of a validated request;
     ``time_budget_ms`` [ms], when given, is the plan's budget instead of the request's (the service
     passes what remains of the request's budget once it has waited, :mod:`app.jobs`)."""
-    options = request.options.model_dump()
+    options, r = request.options.model_dump(), request.road
     if time_budget_ms is not None:
         options["time_budget_ms"] = time_budget_ms
     return pp.PlanningProblem(
@@ -76,6 +90,8 @@ def to_problem(request: PlanningRequest, *, time_budget_ms: float | None = None)
         obstacles=tuple(_obstacle_to_problem(o) for o in request.obstacles),
         vehicle=pp.Vehicle(**request.vehicle.model_dump()),
         options=pp.Options(**options),
+        road=None if r is None else pp.Road(*map(_array, (r.left_width, r.right_width))),
+        goal=None if request.goal is None else _goal_to_problem(request.goal),
     )
 
 
@@ -99,6 +115,16 @@ def _obstacle_from_problem(o: pp.Obstacle) -> AnyObstacle:
         for t, x, y, h in np.asarray(o.prediction, dtype=float).tolist()
     ]
     return DynamicObstacle(id=o.id, length=float(o.length), width=float(o.width), prediction=states)
+
+
+def _goal_from_problem(goal: pg.Goal) -> Goal:
+    position: GoalPolygon | GoalCircle | None = None
+    if isinstance(goal.position, pg.GoalPolygon):
+        position = GoalPolygon(polygon=_points(goal.position.polygon))
+    elif isinstance(goal.position, pg.GoalCircle):
+        x, y = (float(v) for v in goal.position.center)
+        position = GoalCircle(circle=GoalDisc(center=(x, y), radius=float(goal.position.radius)))
+    return Goal(position=position, time=goal.time, speed=goal.speed)
 
 
 def from_problem(problem: pp.PlanningProblem) -> PlanningRequest:
@@ -125,6 +151,13 @@ def from_problem(problem: pp.PlanningProblem) -> PlanningRequest:
         ),
         vehicle=Vehicle(**{k: getattr(problem.vehicle, k) for k in Vehicle.model_fields}),
         options=Options(**{k: getattr(o, k) for k in Options.model_fields}),
+        road=None
+        if problem.road is None
+        else Road(
+            left_width=_width_from_problem(problem.road.left_width),
+            right_width=_width_from_problem(problem.road.right_width),
+        ),
+        goal=None if problem.goal is None else _goal_from_problem(problem.goal),
     )
 
 
@@ -132,6 +165,14 @@ def from_problem(problem: pp.PlanningProblem) -> PlanningRequest:
 def demo_request() -> PlanningRequest:
     """The built-in demo problem (:func:`planner.roads.demo_problem`) as a request."""
     return from_problem(demo_problem())
+
+
+@cache
+def demo_goal() -> Goal:
+    """A goal past the demo's U-turn: stop in the box after it, between 5 and 9 s from now."""
+    return Goal.model_validate(
+        {"position": {"polygon": [[-4, 13], [4, 13], [4, 19], [-4, 19]]}, "time": [5, 9], "speed": [0, 0.5]}
+    )
 
 
 # -- answers -----------------------------------------------------------------------------------
@@ -245,4 +286,20 @@ def plan_data(result: PlanResult, request_ms: Mapping[str, float]) -> dict[str, 
         "timing_ms": dict(zip(STAGES, timing, strict=True)),
         "request": {name: float(request_ms[name]) for name in RequestTiming.model_fields},
     }
+    if diag.goal is not None:
+        data["diagnostics"]["goal"] = goal_data(diag.goal)
+    return data
+
+
+def goal_data(report: GoalReport) -> dict[str, Any]:
+    """A plan's :class:`~planner.goal.GoalReport` as the JSON data of
+    :class:`~app.models.plan.GoalDiagnostics` (``t`` only when reached, ``reason`` only when
+    unreachable)."""
+    data: dict[str, Any] = {"status": GoalStatus(report.status).value}
+    if report.t is not None:
+        _require_finite("the goal's time", report.t)
+        data["t"] = float(report.t)
+    if report.reason is not None:
+        data["reason"] = GoalReason(report.reason).value
+    data["message"] = str(report.message)
     return data

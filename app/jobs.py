@@ -31,6 +31,7 @@ import pydantic_core
 from app.conversions import (
     candidates_data,
     cartesian_data,
+    demo_goal,
     demo_request,
     frenet_data,
     plan_data,
@@ -41,6 +42,7 @@ from app.limits import (
     MAX_ID_LENGTH,
     MAX_OBSTACLE_POINTS,
     MAX_OBSTACLES,
+    MAX_POLYGON_POINTS,
     MAX_QUERY_POINTS,
     MAX_REFERENCE_POINTS,
     MIN_TIME_BUDGET_MS,
@@ -53,12 +55,14 @@ from planner.frenet import to_cartesian, to_frenet
 from planner.pipeline import plan
 from planner.reference import build_reference
 
-#: the most arrays and objects of a planning request: the reference line and its points, two width
-#: lists, the obstacles and each one's polygon, centre or prediction, every vertex; the root, lane,
-#: ego, vehicle and options, each obstacle and its circle, every predicted state; ids may hold either
+#: the most arrays and objects of a planning request: the reference line and its points, four width
+#: lists (lane and road), the obstacles and each one's polygon, centre or prediction, every vertex,
+#: the goal's polygon and its vertices (or its centre), time and speed; the root, lane, road, ego,
+#: vehicle, options, goal and its position and circle, each obstacle and its circle, every predicted
+#: state; ids may hold either
 PLANNING_STRUCTURE = Structure(
-    arrays=4 + MAX_REFERENCE_POINTS + MAX_OBSTACLES + MAX_OBSTACLE_POINTS,
-    objects=5 + 2 * MAX_OBSTACLES + MAX_OBSTACLE_POINTS,
+    arrays=6 + MAX_REFERENCE_POINTS + MAX_OBSTACLES + MAX_OBSTACLE_POINTS + 3 + MAX_POLYGON_POINTS,
+    objects=9 + 2 * MAX_OBSTACLES + MAX_OBSTACLE_POINTS,
     in_strings=MAX_OBSTACLES * MAX_ID_LENGTH,
 )
 #: the most arrays and objects of a /v1/frenet or /v1/cartesian request
@@ -155,6 +159,8 @@ def run_job(job: Job) -> Outcome:
 
 
 def warm_up() -> None:
-    """Plan the demo once, so that a process's first plan does not build the speed problem."""
-    body = demo_request().model_dump_json().encode()
-    plan_job(Job("plan", body, time.monotonic(), 60_000.0))
+    """Plan the demo once, and once with a goal, so that a process's first plan does not build the speed
+    problem (a goal's has a QP of its own)."""
+    demo = demo_request()
+    for request in (demo, demo.model_copy(update={"goal": demo_goal()})):
+        plan_job(Job("plan", request.model_dump_json().encode(), time.monotonic(), 60_000.0))

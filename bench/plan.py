@@ -4,7 +4,10 @@
 * the speed stage alone (N = 80, Δt = 0.1 s) with a curvature dip and a leader;
 * whole plans on an 8 s horizon with 3 obstacles (the demo U-turn with a parked car and a leader added,
   and a straight road), for the point model and for a car, median and p99, with the per-stage
-  breakdown from the plan's diagnostics.
+  breakdown from the plan's diagnostics;
+* the same scenes with a goal (a stop inside a region, a region in a time window above the target, a
+  region beside the reference), each planned alternately with and without its goal, so that both see the
+  same machine (``--goals`` runs only these).
 
 Targets (issue 3): lateral QP ≤ 3 ms median; speed ≤ 10 ms median; plan ≤ 25 ms median, ≤ 60 ms p99.
 """
@@ -23,6 +26,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from planner.goal import Goal, GoalPolygon
 from planner.pipeline import plan
 from planner.problem import (
     CircleObstacle,
@@ -135,11 +139,53 @@ def bench_plans() -> None:
         print(f"    median per stage [ms]: {breakdown}")
 
 
+def _box(x0: float, x1: float, y0: float, y1: float) -> GoalPolygon:
+    return GoalPolygon(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]))
+
+
+def goal_scenes() -> dict[str, tuple[PlanningProblem, Goal]]:
+    """Scenes of :func:`scenes` and a goal for each: (problem without it, goal)."""
+    base = scenes()
+    highway = base["straight road, 3 obstacles"]
+    u_turn = base["demo U-turn + parked car + leader"]
+    hurry = replace(highway, options=replace(highway.options, speed_limit=18.0))
+    return {
+        "straight, stop 50–60 m ahead": (highway, Goal(_box(60.0, 70.0, -1.75, 1.75), speed=(0.0, 0.0))),
+        "straight, 6–8 s window, limit 18": (hurry, Goal(_box(85.0, 100.0, -1.75, 1.75), time=(6.0, 8.0))),
+        "straight, region beside the lane centre": (highway, Goal(_box(60.0, 80.0, 1.2, 3.5))),
+        "U-turn, the turn's exit in 4–9 s": (u_turn, Goal(_box(2.0, 12.0, 4.0, 14.0), time=(4.0, 9.0))),
+    }
+
+
+def bench_goals(repeats: int = 100) -> None:
+    """Each goal scene planned alternately without and with its goal: medians and p99 of both."""
+    for name, (problem, goal) in goal_scenes().items():
+        with_goal = replace(problem, goal=goal)
+        report = plan(with_goal).diagnostics.goal
+        plan(problem)
+        plain, aimed = [], []
+        for _ in range(repeats):
+            for problem_, out in ((problem, plain), (with_goal, aimed)):
+                t0 = time.perf_counter()
+                plan(problem_)
+                out.append(1e3 * (time.perf_counter() - t0))
+        a, b = np.asarray(plain), np.asarray(aimed)
+        status = "" if report is None else report.status.value
+        print(
+            f"goal: {name:42s} without {np.median(a):6.1f} / p99 {np.percentile(a, 99):6.1f} ms   "
+            f"with {np.median(b):6.1f} / p99 {np.percentile(b, 99):6.1f} ms   [{status}]"
+        )
+
+
 def main() -> None:
     print(f"{os.cpu_count()} cores; every figure wall time in this process")
+    if "--goals" in sys.argv[1:]:
+        bench_goals()
+        return
     bench_lateral()
     bench_speed()
     bench_plans()
+    bench_goals()
 
 
 if __name__ == "__main__":

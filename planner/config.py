@@ -100,6 +100,30 @@ class SpeedConfig:
 
 
 @dataclass(frozen=True)
+class GoalConfig:
+    """How the plan aims at a request's goal (:mod:`planner.goal_plan`)."""
+
+    #: how far inside the region's ends along the path the plan aims to enter, leave and stop [m] (at most
+    #: a quarter of the region's length along the path)
+    margin: float = 0.5
+    #: share of ``max_deceleration`` a stop inside the region, or slowing into its speed range, plans with
+    #: when it can (it brakes harder only where that is too late) [-]
+    deceleration_share: float = 0.5
+    #: a window that ends after the horizon asks the profile to be where the rest can be driven at this
+    #: share of the speed cap by its end [-]
+    beyond_horizon_share: float = 0.8
+    #: the profile aims to be inside this long after the window opens and before it closes [s] (at most a
+    #: quarter of the window)
+    window_margin: float = 1.0
+    #: weight of a candidate's mean squared distance [m²] to the region's offsets over the region [1/m²]
+    candidate_weight: float = 10.0
+    #: samples across the lane per knot when the region is mapped onto the reference
+    lateral_samples: int = 33
+    #: most knots along the reference the region is mapped at (at least 0.5 m apart)
+    max_knots: int = 400
+
+
+@dataclass(frozen=True)
 class PlannerConfig:
     """Every tunable of :func:`planner.pipeline.plan` (see the module docstring for the clearances)."""
 
@@ -121,6 +145,7 @@ class PlannerConfig:
     selection: SelectionConfig = field(default_factory=SelectionConfig)
     lateral: LateralConfig = field(default_factory=LateralConfig)
     speed: SpeedConfig = field(default_factory=SpeedConfig)
+    goal: GoalConfig = field(default_factory=GoalConfig)
 
 
 DEFAULT_CONFIG = PlannerConfig()

@@ -8,6 +8,10 @@ speed profile (:mod:`planner.speed`, :mod:`planner.st_bounds`) → trajectory an
 Each stage is a function of the ones before; :func:`plan` only wires them and times them. A planning
 failure is a status (``stopped`` when the road ahead is blocked, ``fallback`` when a stage fails or its
 result breaks a check), always with a trajectory that brakes safely along the best path known.
+
+A request's goal adds its decisions to the stages (:mod:`planner.goal_plan`: the candidates' length and
+choice, the lateral QP's reference offsets, the speed profile's terms) and every answer says what its
+trajectory does with it (:mod:`planner.goal_report`); without a goal each of these is the identity.
 """
 
 from __future__ import annotations
@@ -21,6 +25,15 @@ from planner.collision import frenet_boxes
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.ego import EgoFrenet, start_state
 from planner.fallback import fallback
+from planner.goal_plan import (
+    GoalSetup,
+    candidate_cost,
+    candidate_options,
+    goal_setup,
+    speed_aim,
+    toward_region,
+)
+from planner.goal_report import judge
 from planner.lane import corridor_width
 from planner.lateral import LateralPlan, lateral_stage
 from planner.problem import PlanningProblem
@@ -48,20 +61,23 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
         ref = build_reference(problem.reference_line)
         start = start_state(ref, problem, config)
     with timer.stage("candidates"):
-        cands = generate_candidates(ref, problem.lane, problem.ego, vehicle, options, start=start)
+        goal = goal_setup(ref, problem, config)
+        cand_options = candidate_options(goal, options)
+        cands = generate_candidates(ref, problem.lane, problem.ego, vehicle, cand_options, start=start)
         static = static_shapes(problem)
         boxes = frenet_boxes(ref, static, reach=corridor_width(problem, config))
-        choice = choose_candidate(cands, boxes, problem, config)
+        choice = choose_candidate(cands, boxes, problem, config, candidate_cost(goal, cands, problem, config))
         s_c, d_c, _ = cands.points(choice.best)
     stats = CandidateStats(cands.count, int(cands.repaired.sum()), choice.collision_free)
-    run = _Run(ref, problem, start, static, cands, choice.best, stats, timer, config)
+    run = _Run(ref, problem, start, static, cands, choice.best, stats, timer, config, goal)
     candidate = polyline_path(ref, s_c, d_c)
     if reason := timer.overrun("candidates"):
         return run.fallback(reason, candidate, candidate)
 
     with timer.stage("lateral"):
+        d_aim = toward_region(goal, ref, s_c, d_c, boxes, problem, config)
         lateral = lateral_stage(
-            solvers.lateral, ref, problem, start, (s_c, d_c), boxes, timer.remaining_s, config
+            solvers.lateral, ref, problem, start, (s_c, d_aim), boxes, timer.remaining_s, config
         )
     run = replace(run, knots=lateral.knots)
     if lateral.path is None:
@@ -71,7 +87,8 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
         return run.fallback(reason, path, candidate, lateral.info)
 
     with timer.stage("speed"):
-        speed = speed_stage(solvers.speed, ref, lateral, path, problem, start, config)
+        aim = speed_aim(goal, path, problem, config)
+        speed = speed_stage(solvers.speed, ref, lateral, path, problem, start, config, aim)
     sqp = speed.solved
     if not sqp.info.usable:
         return run.fallback(
@@ -90,7 +107,8 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
         reason = f"the optimised trajectory breaks a check: {bad[0]}"
         return run.fallback(reason, path, candidate, lateral.info, sqp.info, planned=sqp)
     status: Status = "stopped" if lateral.stops else "ok"
-    return run.result(status, _message(lateral, start) + note, traj, lateral.info, sqp.info, profile.kind)
+    message = _message(lateral, start) + note
+    return run.result(status, message, traj, lateral.info, sqp.info, profile.kind, stopped=lateral.stops)
 
 
 def _trajectory(
@@ -146,6 +164,7 @@ class _Run:
     stats: CandidateStats
     timer: StageTimer
     config: PlannerConfig
+    goal: GoalSetup | None = None
     knots: int = 0
 
     def fallback(
@@ -175,11 +194,16 @@ class _Run:
         speed: SolveInfo,
         profile: ProfileKind,
         violations: tuple[Violation, ...] = (),
+        stopped: bool = False,
     ) -> PlanResult:
-        """The answer, its diagnostics timed up to now."""
+        """The answer, what it does with the goal (``stopped``: before a block), its diagnostics timed up
+        to now."""
+        report = None
+        if self.goal is not None:
+            report = judge(self.goal, traj, fallback=status == "fallback", stopped=stopped)
         timing = self.timer.timing_ms()
         diag = PlanDiagnostics(
-            self.stats, lateral, speed, timing, self.ref.size, self.knots, self.best, profile
+            self.stats, lateral, speed, timing, self.ref.size, self.knots, self.best, profile, report
         )
         cands = self.cands if self.problem.options.return_candidates else None
         return PlanResult(status, message, traj, cands, diag, violations)

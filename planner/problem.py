@@ -21,11 +21,14 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any, Literal, get_args
+from typing import Any, ClassVar, Literal, get_args
 
 import numpy as np
 
+from planner import checks
+from planner.checks import MAX_SIZE
 from planner.errors import InvalidInputError, InvalidReferenceError
+from planner.goal import Goal
 from planner.reference import FloatArray
 
 Generator = Literal["naive", "transf_kappa"]
@@ -75,15 +78,32 @@ class Lane:
         InvalidInputError: naming the field (``lane.left_width``, ``lane.right_width.3``).
     """
 
+    #: the request's key of these widths, which an error's field starts with
+    KEY: ClassVar[str] = "lane"
+
     left_width: float | FloatArray
     right_width: float | FloatArray
 
     def __post_init__(self) -> None:
         for name in ("left_width", "right_width"):
             value = getattr(self, name)
-            width = _width(value, f"lane.{name}")
+            width = checks.width(value, f"{self.KEY}.{name}")
             if width is not value:
                 object.__setattr__(self, name, width)
+
+
+@dataclass(frozen=True)
+class Road(Lane):
+    """The drivable surface either side of the reference [m]: the lane and what lies beyond it (adjacent
+    lanes of either direction, shoulders), given as a lane is; on each side at least the lane's width
+    (the :class:`PlanningProblem` checks it). A vehicle keeps to its lane and may leave it for the
+    road only to get past what blocks the lane.
+
+    Raises:
+        InvalidInputError: naming the field (``road.left_width``, ``road.right_width.3``).
+    """
+
+    KEY: ClassVar[str] = "road"
 
 
 @dataclass(frozen=True)
@@ -116,10 +136,10 @@ class Ego:
     curvature: float | None = None
 
     def __post_init__(self) -> None:
-        _number(self.x, "ego.x")
-        _number(self.y, "ego.y")
-        _number(self.heading, "ego.heading")
-        speed = _number(self.speed, "ego.speed")
+        checks.number(self.x, "ego.x")
+        checks.number(self.y, "ego.y")
+        checks.number(self.heading, "ego.heading")
+        speed = checks.number(self.speed, "ego.speed")
         if not -STANDSTILL_TOLERANCE <= speed <= MAX_EGO_SPEED:
             raise InvalidInputError(
                 f"must be between 0 and {MAX_EGO_SPEED:g} m/s (the planner drives forwards)",
@@ -127,9 +147,10 @@ class Ego:
             )
         if speed < 0.0:
             object.__setattr__(self, "speed", 0.0)
-        if abs(_number(self.acceleration, "ego.acceleration")) > MAX_ACCELERATION:
+        if abs(checks.number(self.acceleration, "ego.acceleration")) > MAX_ACCELERATION:
             raise InvalidInputError(f"must be between ±{MAX_ACCELERATION:g} m/s²", field="ego.acceleration")
-        if self.curvature is not None and abs(_number(self.curvature, "ego.curvature")) > MAX_EGO_CURVATURE:
+        curvature = self.curvature
+        if curvature is not None and abs(checks.number(curvature, "ego.curvature")) > MAX_EGO_CURVATURE:
             raise InvalidInputError(f"must be between ±{MAX_EGO_CURVATURE:g} 1/m", field="ego.curvature")
 
 
@@ -138,9 +159,6 @@ SMALLEST_LIMIT = float(np.finfo(np.float64).tiny)
 #: the limits of :class:`Vehicle` whose reciprocals the planner takes (braking distances ``v²/a``, time
 #: to reach a speed ``v/a``, turning radius ``1/κ``): they must be normal floats
 RECIPROCAL_LIMITS = ("max_acceleration", "max_deceleration", "max_lateral_acceleration", "max_curvature")
-#: largest vehicle or obstacle dimension [m]: longer than the equator (4·10⁷ m), so no real object's;
-#: far beyond it the squares of lengths overflow
-MAX_SIZE = 1e8
 #: largest acceleration limit [m/s²]: about 1000 g, which no vehicle's tyres transmit nor occupants
 #: survive (road vehicles reach about 1 g); far beyond it the speed profile's braking terms overflow
 MAX_ACCELERATION = 1e4
@@ -167,52 +185,6 @@ _VEHICLE_MAXIMA = {
     "max_deceleration": MAX_ACCELERATION,
     "max_lateral_acceleration": MAX_ACCELERATION,
 }
-
-
-def _number(value: Any, where: str) -> float:
-    """``value`` as a finite float, or :class:`InvalidInputError` naming ``where``."""
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        raise InvalidInputError("must be a number", field=where)
-    number = float(value)
-    if not math.isfinite(number):
-        raise InvalidInputError("must be finite", field=where)
-    return number
-
-
-def _integer(value: Any, where: str, minimum: int) -> int:
-    """``value`` as an int of at least ``minimum``, or :class:`InvalidInputError` naming ``where``."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer):
-        raise InvalidInputError("must be an integer", field=where)
-    if value < minimum:
-        raise InvalidInputError(f"must be at least {minimum}", field=where)
-    return int(value)
-
-
-def _width(value: Any, where: str) -> float | FloatArray:
-    """A lane width [m] in ``[0, MAX_SIZE]``, or a 1-D float array of them (``value`` itself when it is
-    one already); a bad value of an array is named by its index (``lane.left_width.3``)."""
-    if isinstance(value, int | float | np.integer | np.floating | bool | str | bytes):
-        width = _number(value, where)
-        if not 0.0 <= width <= MAX_SIZE:
-            raise InvalidInputError(f"must be between 0 and {MAX_SIZE:g} m", field=where)
-        return width
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidInputError("must be a number or an array of numbers", field=where) from None
-    if arr.ndim == 0:
-        return _width(float(arr), where)
-    if arr.ndim != 1:
-        raise InvalidInputError(
-            f"must be a number or one number per reference point, not {arr.shape}", field=where
-        )
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
-        raise InvalidInputError("must be finite", field=f"{where}.{bad[0]}")
-    bad = np.flatnonzero((arr < 0.0) | (arr > MAX_SIZE))
-    if bad.size:
-        raise InvalidInputError(f"must be between 0 and {MAX_SIZE:g} m", field=f"{where}.{bad[0]}")
-    return arr
 
 
 @dataclass(frozen=True)
@@ -264,7 +236,7 @@ class Vehicle:
             where = f"vehicle.{f.name}"
             if f.name in CAR_FIELDS:
                 continue
-            value = _number(getattr(self, f.name), where)
+            value = checks.number(getattr(self, f.name), where)
             if not value > 0.0:
                 raise InvalidInputError("must be positive", field=where)
             if value < SMALLEST_LIMIT and f.name in RECIPROCAL_LIMITS:
@@ -283,7 +255,7 @@ class Vehicle:
             if given:
                 raise InvalidInputError("needs vehicle.wheelbase (a car)", field=f"vehicle.{given[0]}")
             return
-        wheelbase = _number(self.wheelbase, "vehicle.wheelbase")
+        wheelbase = checks.number(self.wheelbase, "vehicle.wheelbase")
         if not 0.0 < wheelbase <= MAX_SIZE:
             raise InvalidInputError(f"must be positive and at most {MAX_SIZE:g} m", field="vehicle.wheelbase")
         if self.rear_axle_offset is None:
@@ -291,14 +263,14 @@ class Vehicle:
                 "is required with a wheelbase: how far the rear axle lies behind the footprint's centre",
                 field="vehicle.rear_axle_offset",
             )
-        offset = _number(self.rear_axle_offset, "vehicle.rear_axle_offset")
+        offset = checks.number(self.rear_axle_offset, "vehicle.rear_axle_offset")
         if not 0.0 <= offset <= 0.5 * self.length:
             raise InvalidInputError(
                 f"must be between 0 and half the length ({0.5 * self.length:g} m)",
                 field="vehicle.rear_axle_offset",
             )
         if self.max_steering_angle is not None:
-            angle = _number(self.max_steering_angle, "vehicle.max_steering_angle")
+            angle = checks.number(self.max_steering_angle, "vehicle.max_steering_angle")
             if not 0.0 < angle < 0.5 * math.pi:
                 raise InvalidInputError("must be between 0 and π/2 rad", field="vehicle.max_steering_angle")
             if math.tan(angle) / wheelbase < SMALLEST_LIMIT:  # the curvature it allows: a reciprocal limit
@@ -307,7 +279,7 @@ class Vehicle:
                     field="vehicle.max_steering_angle",
                 )
         if self.max_steering_rate is not None:
-            rate = _number(self.max_steering_rate, "vehicle.max_steering_rate")
+            rate = checks.number(self.max_steering_rate, "vehicle.max_steering_rate")
             if not rate >= SMALLEST_LIMIT:
                 raise InvalidInputError("must be positive", field="vehicle.max_steering_rate")
 
@@ -364,7 +336,11 @@ class Options:
     Attributes:
         horizon_time: planning horizon [s].
         dt: trajectory sampling step [s].
-        target_speed: desired speed [m/s]; ``None`` means the vehicle's max speed.
+        target_speed: desired speed [m/s]; ``None`` means the vehicle's max speed (within
+            ``speed_limit``).
+        speed_limit: the highest speed allowed [m/s], at least ``target_speed``: the vehicle cruises at
+            the target and may drive faster, up to this, to keep clear of a vehicle from behind or to
+            meet a goal's time window. ``None``: the target speed is the limit.
         num_candidates: candidate lateral profiles to generate.
         num_points: points per candidate.
         generator: ``naive`` (Algorithm 4) or ``transf_kappa`` (Algorithm 5).
@@ -379,7 +355,8 @@ class Options:
 
     Ranges: ``0 < horizon_time ≤ MAX_HORIZON_TIME``; ``MIN_DT ≤ dt ≤ MAX_HORIZON_TIME`` with at most
     :data:`MAX_TRAJECTORY_POINTS` steps ``horizon_time / dt`` (a ``dt`` longer than the horizon gives a
-    single point); ``target_speed`` and ``min_path_length`` finite and ≥ 0 (the planner caps them at
+    single point); ``target_speed``, ``speed_limit`` and ``min_path_length`` finite and ≥ 0, ``speed_limit``
+    at least ``target_speed`` (the planner caps them at
     the vehicle's speed and its longest path); ``0 ≤ lateral_margin ≤ MAX_SIZE``; ``num_candidates ≥ 1``,
     ``2 ≤ num_points ≤ MAX_NUM_POINTS`` and ``num_candidates × num_points ≤ MAX_CANDIDATE_POINTS``;
     ``seed ≥ 0``; ``time_budget_ms`` positive.
@@ -391,6 +368,7 @@ class Options:
     horizon_time: float = 8.0
     dt: float = 0.1
     target_speed: float | None = None
+    speed_limit: float | None = None
     num_candidates: int = 32
     num_points: int = 100
     generator: Generator = "transf_kappa"
@@ -401,12 +379,12 @@ class Options:
     time_budget_ms: float | None = None
 
     def __post_init__(self) -> None:
-        horizon = _number(self.horizon_time, "options.horizon_time")
+        horizon = checks.number(self.horizon_time, "options.horizon_time")
         if not 0.0 < horizon <= MAX_HORIZON_TIME:
             raise InvalidInputError(
                 f"must be positive and at most {MAX_HORIZON_TIME:g} s", field="options.horizon_time"
             )
-        dt = _number(self.dt, "options.dt")
+        dt = checks.number(self.dt, "options.dt")
         if not MIN_DT <= dt <= MAX_HORIZON_TIME:
             raise InvalidInputError(
                 f"must be between {MIN_DT:g} and {MAX_HORIZON_TIME:g} s", field="options.dt"
@@ -416,14 +394,19 @@ class Options:
                 f"horizon_time / dt = {horizon / dt:.0f} trajectory steps; at most {MAX_TRAJECTORY_POINTS}",
                 field="options.dt",
             )
-        for name in ("target_speed", "lateral_margin", "min_path_length"):
+        for name in ("target_speed", "speed_limit", "lateral_margin", "min_path_length"):
             value = getattr(self, name)
-            if value is not None and not _number(value, f"options.{name}") >= 0.0:
+            if value is not None and not checks.number(value, f"options.{name}") >= 0.0:
                 raise InvalidInputError("must be at least 0", field=f"options.{name}")
+        limit, target = self.speed_limit, self.target_speed
+        if limit is not None and target is not None and limit < target:
+            raise InvalidInputError(
+                f"must be at least target_speed ({target:g} m/s)", field="options.speed_limit"
+            )
         if self.lateral_margin > MAX_SIZE:  # far beyond, the lateral QP's bounds leave OSQP's range (10³⁰)
             raise InvalidInputError(f"must be at most {MAX_SIZE:g} m", field="options.lateral_margin")
-        candidates = _integer(self.num_candidates, "options.num_candidates", 1)
-        points = _integer(self.num_points, "options.num_points", 2)
+        candidates = checks.integer(self.num_candidates, "options.num_candidates", 1)
+        points = checks.integer(self.num_points, "options.num_points", 2)
         if points > MAX_NUM_POINTS:
             raise InvalidInputError(f"must be at most {MAX_NUM_POINTS}", field="options.num_points")
         if candidates * points > MAX_CANDIDATE_POINTS:
@@ -435,18 +418,19 @@ class Options:
             raise InvalidInputError(
                 f"must be one of {', '.join(get_args(Generator))}", field="options.generator"
             )
-        _integer(self.seed, "options.seed", 0)
+        checks.integer(self.seed, "options.seed", 0)
         if not isinstance(self.return_candidates, bool | np.bool_):
             raise InvalidInputError("must be true or false", field="options.return_candidates")
         budget = self.time_budget_ms
-        if budget is not None and not _number(budget, "options.time_budget_ms") > 0.0:
+        if budget is not None and not checks.number(budget, "options.time_budget_ms") > 0.0:
             raise InvalidInputError("must be positive", field="options.time_budget_ms")
 
 
 @dataclass(frozen=True)
 class PlanningProblem:
     """Everything one plan needs: reference polyline (n, 2) [m] in driving order, lane, obstacles,
-    ego state, vehicle and options."""
+    ego state, vehicle and options; optionally the whole road beyond the lane (``road``, on each side
+    at least the lane: see :class:`Road`) and a goal (:class:`planner.goal.Goal`)."""
 
     reference_line: FloatArray
     lane: Lane
@@ -454,6 +438,8 @@ class PlanningProblem:
     obstacles: tuple[Obstacle, ...] = ()
     vehicle: Vehicle = field(default_factory=Vehicle)
     options: Options = field(default_factory=Options)
+    road: Road | None = None
+    goal: Goal | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -463,46 +449,55 @@ class PlanningProblem:
                 "must be a list of [x, y] pairs of numbers", field="reference_line"
             ) from None
         object.__setattr__(self, "reference_line", reference)
-        for name, kind in (("lane", Lane), ("ego", Ego), ("vehicle", Vehicle), ("options", Options)):
-            if not isinstance(getattr(self, name), kind):
+        parts: tuple[tuple[str, type, bool], ...] = (
+            ("lane", Lane, False),
+            ("ego", Ego, False),
+            ("vehicle", Vehicle, False),
+            ("options", Options, False),
+            ("road", Road, True),
+            ("goal", Goal, True),
+        )
+        for name, kind, optional in parts:
+            value = getattr(self, name)
+            if not isinstance(value, kind) and not (optional and value is None):
                 raise InvalidInputError(f"must be a {kind.__name__}", field=name)
         if reference.ndim == 2:  # any other shape is build_reference's to refuse
-            for name in ("left_width", "right_width"):
-                width = getattr(self.lane, name)
-                if isinstance(width, np.ndarray) and width.shape[0] != reference.shape[0]:
-                    raise InvalidInputError(
-                        f"has {width.shape[0]} values but reference_line has {reference.shape[0]} points; "
-                        "give one width per reference point or a single number",
-                        field=f"lane.{name}",
-                    )
+            for widths in (self.lane, self.road):
+                if widths is not None:
+                    _check_count(widths, reference.shape[0])
+            if self.road is not None:
+                _check_road(self.lane, self.road)
         obstacles = tuple(_checked_obstacle(ob, i) for i, ob in enumerate(self.obstacles))
         object.__setattr__(self, "obstacles", obstacles)
 
 
-def _array(value: Any, where: str, shape: tuple[int | None, ...], *, min_rows: int = 1) -> FloatArray:
-    """``value`` as a finite float array of ``shape`` (``None``: any length, at least ``min_rows``);
-    ``value`` itself when it is one already."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidInputError("must be an array of numbers", field=where) from None
-    if arr.ndim != len(shape) or (shape[-1] is not None and arr.shape[-1] != shape[-1]):
-        wanted = " × ".join("k" if n is None else str(n) for n in shape)
-        raise InvalidInputError(f"must have shape ({wanted}), not {arr.shape}", field=where)
-    if arr.ndim and arr.shape[0] < min_rows:
-        raise InvalidInputError(f"needs at least {min_rows} rows, has {arr.shape[0]}", field=where)
-    if not np.isfinite(arr).all():
-        raise InvalidInputError("must be finite", field=where)
-    return arr
+def _check_count(widths: Lane, points: int) -> None:
+    """Per-point widths of a lane or road come one per reference point."""
+    for name in ("left_width", "right_width"):
+        width = getattr(widths, name)
+        if isinstance(width, np.ndarray) and width.shape[0] != points:
+            raise InvalidInputError(
+                f"has {width.shape[0]} values but reference_line has {points} points; "
+                "give one width per reference point or a single number",
+                field=f"{widths.KEY}.{name}",
+            )
 
 
-def _size(value: Any, where: str) -> float:
-    """A size [m] in ``[0, MAX_SIZE]``; zero (or a size below rounding) makes the obstacle a point or a
-    segment."""
-    size = _number(value, where)
-    if not 0.0 <= size <= MAX_SIZE:
-        raise InvalidInputError(f"must be between 0 and {MAX_SIZE:g} m", field=where)
-    return size
+def _check_road(lane: Lane, road: Road) -> None:
+    """The road reaches at least as far as the lane on each side, at every reference point."""
+    for name in ("left_width", "right_width"):
+        lane_w, road_w = np.broadcast_arrays(getattr(lane, name), getattr(road, name))
+        narrow = np.flatnonzero(np.atleast_1d(road_w < lane_w))
+        if narrow.size:
+            i = int(narrow[0])
+            per_point = np.ndim(getattr(road, name)) == 1
+            at = f"road.{name}.{i}" if per_point else f"road.{name}"
+            lane_at = float(np.atleast_1d(lane_w)[i])
+            raise InvalidInputError(
+                f"is narrower than the lane ({lane_at:g} m{f' at point {i}' if np.ndim(lane_w) else ''}):"
+                " the road holds the lane",
+                field=at,
+            )
 
 
 def _checked_obstacle(ob: Any, index: int) -> Obstacle:
@@ -510,17 +505,17 @@ def _checked_obstacle(ob: Any, index: int) -> Obstacle:
     does (``obstacles.2.circle.radius``, ``obstacles.2.length``, ``obstacles.2.prediction.3.t``)."""
     where = f"obstacles.{index}"
     if isinstance(ob, PolygonObstacle):
-        polygon = _array(ob.polygon, f"{where}.polygon", (None, 2), min_rows=3)
+        polygon = checks.array(ob.polygon, f"{where}.polygon", (None, 2), min_rows=3)
         return ob if polygon is ob.polygon else dataclasses.replace(ob, polygon=polygon)
     if isinstance(ob, CircleObstacle):
-        center = _array(ob.center, f"{where}.circle.center", (2,))
-        radius = _size(ob.radius, f"{where}.circle.radius")
+        center = checks.array(ob.center, f"{where}.circle.center", (2,))
+        radius = checks.size(ob.radius, f"{where}.circle.radius")
         same = center is ob.center and radius is ob.radius
         return ob if same else dataclasses.replace(ob, center=center, radius=radius)
     if isinstance(ob, DynamicObstacle):
-        length = _size(ob.length, f"{where}.length")
-        width = _size(ob.width, f"{where}.width")
-        prediction = _array(ob.prediction, f"{where}.prediction", (None, 4))
+        length = checks.size(ob.length, f"{where}.length")
+        width = checks.size(ob.width, f"{where}.width")
+        prediction = checks.array(ob.prediction, f"{where}.prediction", (None, 4))
         if prediction.shape[0] > 1:
             step = np.flatnonzero(~(prediction[1:, 0] > prediction[:-1, 0]))
             if step.size:

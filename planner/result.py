@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from planner.candidates import CandidateSet
+from planner.goal import GoalReport
 from planner.speed import ProfileKind
 from planner.trajectory import Trajectory
 from planner.validation import Violation
@@ -42,6 +43,7 @@ class PlanDiagnostics:
         knots: knots of the lateral QP (0 when it did not run).
         chosen_candidate: index of the candidate followed.
         speed_profile: the speed profile the trajectory samples: the SQP's, or an analytic one.
+        goal: what the trajectory does with the request's goal (None without one).
     """
 
     candidates: CandidateStats
@@ -52,6 +54,7 @@ class PlanDiagnostics:
     knots: int
     chosen_candidate: int | None
     speed_profile: ProfileKind
+    goal: GoalReport | None = None
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,8 @@ For candidate ``i`` with kept points ``(s_j, d_j)`` [m], ``n`` of them, its cost
     J_i = Σ d_j² / n + w_bend · Σ |Δd′_j| + w_progress · (1 − progress_i / longest) + [hits] · collision_cost
 
 (the mean squared offset [m²], the summed change of slope ``d′ = Δd/Δs``, the share of the longest
-progress along the reference not reached), with the weights of :class:`planner.config.SelectionConfig`.
+progress along the reference not reached), with the weights of :class:`planner.config.SelectionConfig`,
+plus any term a goal adds (:func:`planner.goal_plan.candidate_cost`).
 A candidate hits when its footprint box (placed from the planned point: the centre, a car's rear axle),
 turned by its heading error and with ``obstacle_margin`` around it, meets a static obstacle's Frenet
 box at one of its points.
@@ -22,6 +23,7 @@ from planner.candidates import CandidateSet
 from planner.collision import FrenetBoxes, box_hits, footprint_extent
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.problem import PlanningProblem
+from planner.reference import FloatArray
 
 
 @dataclass(frozen=True)
@@ -39,10 +41,14 @@ class Choice:
 
 
 def choose_candidate(
-    cands: CandidateSet, boxes: FrenetBoxes, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG
+    cands: CandidateSet,
+    boxes: FrenetBoxes,
+    problem: PlanningProblem,
+    config: PlannerConfig = DEFAULT_CONFIG,
+    extra: FloatArray | None = None,
 ) -> Choice:
-    """Score every candidate (offset, smoothness, progress, clearance: see the module docstring) and
-    choose the best."""
+    """Score every candidate (offset, smoothness, progress, clearance: see the module docstring, and
+    ``extra``, shape (N,), when given) and choose the best."""
     weights = config.selection
     ds = np.diff(cands.s, axis=1)
     dd = np.diff(cands.d, axis=1) / np.where(ds > 0, ds, 1.0)
@@ -62,4 +68,6 @@ def choose_candidate(
         + weights.progress_weight * (1.0 - progress / span)
         + weights.collision_cost * (~free)
     )
+    if extra is not None:
+        cost = cost + extra
     return Choice(int(np.argmin(cost)), np.asarray(free, dtype=bool))

@@ -17,6 +17,10 @@ A profile that still ends past a stop or a space-time bound by more than ``posit
 replaced by full braking (:func:`braking`): it keeps every ``σ(t)`` as small as the limits allow. The
 profile the trajectory samples says what it is (:class:`ProfileKind`); the SQP's own answer is kept
 for the diagnostics.
+
+A request's goal adds its terms (:class:`SpeedAim`, decided by :func:`planner.goal_plan.speed_aim`): a
+higher cap than the target for the limit, another cruise target, a stop inside its region, the soft
+bounds of its time window and the top of its speed range over its region. Without one, nothing changes.
 """
 
 from __future__ import annotations
@@ -78,6 +82,32 @@ class Profile:
 
 
 @dataclass(frozen=True)
+class SpeedAim:
+    """What a goal asks of the speed profile (:func:`planner.goal_plan.speed_aim`), along the path's arc
+    length ``σ`` [m] from its start.
+
+    Attributes:
+        cap: the speed the limit allows at most [m/s], in place of the target (at least the target).
+        v_target: the speed the profile aims at [m/s].
+        stop: a stop ``σ ≤ stop`` (the lower of it and the path's own; ``+inf``: none).
+        lower, upper: the soft bounds ``goal_lower``, ``goal_upper`` on ``σ`` at the profile's knots [m]
+            (:class:`solvers.speed_problem.SpeedProblem`), or None.
+        ceiling: a limit [m/s] at the path's knots the speed limit is lowered to, or None.
+    """
+
+    cap: float
+    v_target: float
+    stop: float = math.inf
+    lower: FloatArray | None = None
+    upper: FloatArray | None = None
+    ceiling: FloatArray | None = None
+
+    def limited(self, limit: FloatArray) -> FloatArray:
+        """The speed limit ``limit`` [m/s] at the path's knots, lowered to ``ceiling``."""
+        return limit if self.ceiling is None else np.minimum(limit, self.ceiling)
+
+
+@dataclass(frozen=True)
 class SpeedPlan:
     """The speed stage's outcome: the SQP's answer and the profile the trajectory samples (the SQP's,
     or full braking where it ended past a stop or a space-time bound)."""
@@ -99,10 +129,12 @@ def target_speed(problem: PlanningProblem) -> float:
     return v_max if target is None else min(target, v_max)
 
 
-def speed_limit(path: Path, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> FloatArray:
-    """The speed profile's limit along ``path`` [m/s] at its knots: the target speed, within the vehicle's,
-    the curvature's and, for a car with a steering-rate limit, the steering rate's (the target is a
-    cap: a faster vehicle behind does not raise it).
+def speed_limit(
+    path: Path, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG, cap: float | None = None
+) -> FloatArray:
+    """The speed profile's limit along ``path`` [m/s] at its knots: the target speed (or ``cap`` [m/s]
+    when given: a goal's), within the vehicle's, the curvature's and, for a car with a steering-rate
+    limit, the steering rate's (the target is a cap: a faster vehicle behind does not raise it).
 
     The curvature's: ``v² |κ| √(1 + (l_r κ)²) ≤ limit_margin · a_lat,max``, the lateral acceleration of the
     body's centre (:func:`planner.kinematics.lateral_acceleration`; ``v² |κ|`` for the point model). The
@@ -116,7 +148,7 @@ def speed_limit(path: Path, problem: PlanningProblem, config: PlannerConfig = DE
         curvature = curvature * np.sqrt(1.0 + (vehicle.rear_offset * path.curvature) ** 2)
     with np.errstate(divide="ignore"):
         lateral = np.sqrt(config.limit_margin * a_lat / curvature)
-    limit = np.minimum(target_speed(problem), lateral)
+    limit = np.minimum(target_speed(problem) if cap is None else cap, lateral)
     steering = steering_rate_speed(path.sigma, path.curvature, vehicle, config.speed.steering_rate_share)
     if steering is not None:
         limit = np.minimum(limit, steering)
@@ -137,10 +169,11 @@ def _speed_problem(
     s_stop: float = math.inf,
     s_upper: FloatArray | None = None,
     s_lower: FloatArray | None = None,
+    aim: SpeedAim | None = None,
 ) -> SpeedProblem:
     """The speed problem along ``path`` from the ego's speed and acceleration (that within the vehicle's
     limits), with the speed limit ``limit_v`` [m/s] at the path's knots, the target ``v_target`` [m/s]
-    and the bounds on ``σ`` [m] (see :class:`solvers.speed.SpeedProblem`)."""
+    and the bounds on ``σ`` [m] (see :class:`solvers.speed.SpeedProblem`), a goal's from ``aim``."""
     v = problem.vehicle
     return SpeedProblem(
         dt=dt,
@@ -156,6 +189,8 @@ def _speed_problem(
         s_stop=s_stop,
         s_upper=s_upper,
         s_lower=s_lower,
+        goal_lower=None if aim is None else aim.lower,
+        goal_upper=None if aim is None else aim.upper,
     )
 
 
@@ -184,8 +219,12 @@ def _solve(
     dt: float,
     jerk_max: float,
     config: PlannerConfig,
+    aim: SpeedAim | None = None,
 ) -> SpeedResult:
-    limit = speed_limit(path, problem, config)
+    if aim is None:
+        limit, v_target = speed_limit(path, problem, config), target_speed(problem)
+    else:
+        limit, v_target = aim.limited(speed_limit(path, problem, config, aim.cap)), aim.v_target
     sp = _speed_problem(
         path,
         problem,
@@ -193,10 +232,11 @@ def _solve(
         dt,
         jerk_max,
         limit,
-        target_speed(problem),
+        v_target,
         s_stop=s_stop,
         s_upper=bounds.upper,
         s_lower=bounds.lower,
+        aim=aim,
     )
     return solver.solve(sp)
 
@@ -209,20 +249,24 @@ def speed_stage(
     problem: PlanningProblem,
     start: EgoFrenet,
     config: PlannerConfig = DEFAULT_CONFIG,
+    aim: SpeedAim | None = None,
 ) -> SpeedPlan:
-    """The speed profile along the lateral stage's ``path`` (see the module docstring)."""
+    """The speed profile along the lateral stage's ``path`` (see the module docstring), with a goal's
+    ``aim``."""
     cfg = config.speed
     steps, dt = profile_grid(problem.options, cfg)
     s_stop = stop_position(ref, path, lateral, config.stop_gap, problem.vehicle.front_extent)
+    if aim is not None:
+        s_stop = min(s_stop, aim.stop)
     t = np.arange(steps + 1, dtype=np.float64) * dt
     bounds = space_time_bounds(ref, path, problem, t, start.s, config)
     jerk = cfg.emergency_jerk if lateral.stops else cfg.jerk
-    speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config)
+    speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
     if max(speed.speed_violation, speed.position_violation) > cfg.slack and jerk < cfg.emergency_jerk:
         # The comfortable jerk cannot slow down in time (a curve or an obstacle close ahead): safety
         # before comfort, brake as hard as the emergency jerk allows. (Not for a follower bound alone:
         # more jerk hardly speeds up sooner.)
-        speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config)
+        speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config, aim)
     profile = Profile.optimised(speed)
     if speed.info.usable and speed.position_violation > cfg.position_slack:
         # Past a stop or a space-time bound (the solver's limits are soft): full braking keeps every

@@ -1,10 +1,10 @@
 """Planning requests as plain JSON data ⇄ :class:`~planner.problem.PlanningProblem`, without pydantic.
 
 The format is the body of ``POST /v1/plan`` (``reference_line``, ``lane``, ``obstacles``, ``ego``,
-``vehicle``, ``options``); the HTTP layer validates it with its own models (``app.models``, with size
-limits for a public service), this module is what local clients such as the command line use. It
-checks what the planner needs — required and unknown keys, JSON types (a number is a JSON number, not
-a string or a boolean), finiteness, signs, shapes — and raises
+``vehicle``, ``options``, and optionally ``road`` and ``goal``); the HTTP layer validates it with its
+own models (``app.models``, with size limits for a public service), this module is what local clients
+such as the command line use. It checks what the planner needs — required and unknown keys, JSON types
+(a number is a JSON number, not a string or a boolean), finiteness, signs, shapes — and raises
 :class:`~planner.errors.InvalidInputError` naming the field (``obstacles[2].circle.radius``).
 Geometric problems (a reference that runs back on itself, …) are the planner's to find, as for any
 problem. Every field of :class:`~planner.problem.Options` is read, a superset of the HTTP request's
@@ -16,11 +16,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import fields
-from typing import Any, get_args
+from typing import Any, TypeVar, get_args
 
 import numpy as np
 
 from planner.errors import InvalidInputError
+from planner.goal import Goal, GoalCircle, GoalPolygon, GoalPosition
 from planner.problem import (
     CAR_FIELDS,
     CircleObstacle,
@@ -32,11 +33,12 @@ from planner.problem import (
     Options,
     PlanningProblem,
     PolygonObstacle,
+    Road,
     Vehicle,
 )
 from planner.reference import FloatArray
 
-_TOP = {"reference_line", "lane", "obstacles", "ego", "vehicle", "options"}
+_TOP = {"reference_line", "lane", "obstacles", "ego", "vehicle", "options", "road", "goal"}
 _EGO = {"x", "y", "heading", "speed", "acceleration", "curvature"}
 _VEHICLE = (
     "length",
@@ -168,6 +170,44 @@ def _obstacle(value: Any, where: str) -> Obstacle:
     return DynamicObstacle(id=ob_id, length=length, width=width, prediction=rows)
 
 
+W = TypeVar("W", bound=Lane)
+
+
+def _widths(value: Any, key: str, n: int, kind: type[W]) -> W:
+    data = _object(value, key, {"left_width", "right_width"}, ("left_width", "right_width"))
+    return kind(
+        left_width=_width(data["left_width"], f"{key}.left_width", n),
+        right_width=_width(data["right_width"], f"{key}.right_width", n),
+    )
+
+
+def _goal(value: Any) -> Goal:
+    data = _object(value, "goal", {"position", "time", "speed"})
+    position: GoalPosition | None = None
+    if data.get("position") is not None:
+        shape = _object(data["position"], "goal.position", {"polygon", "circle"})
+        if len(shape) != 1:
+            raise InvalidInputError("must have exactly one of 'polygon' or 'circle'", field="goal.position")
+        if "polygon" in shape:
+            position = GoalPolygon(_points(shape["polygon"], "goal.position.polygon", min_length=3))
+        else:
+            where = "goal.position.circle"
+            circle = _object(shape["circle"], where, {"center", "radius"}, ("center", "radius"))
+            center = _points([circle["center"]], f"{where}.center", min_length=1)[0]
+            position = GoalCircle(center, _number(circle["radius"], f"{where}.radius", positive=True))
+    time, speed = (_interval(data.get(key), f"goal.{key}") for key in ("time", "speed"))
+    return Goal(position=position, time=time, speed=speed)  # checks the intervals' order and signs
+
+
+def _interval(value: Any, where: str) -> tuple[float, float] | None:
+    if value is None:
+        return None
+    pair = _list(value, where)
+    if len(pair) != 2:
+        raise InvalidInputError("must be a pair [low, high]", field=where)
+    return _number(pair[0], f"{where}[0]"), _number(pair[1], f"{where}[1]")
+
+
 def _option(key: str, value: Any) -> Any:
     where, kind = f"options.{key}", _OPTION_TYPES[key]
     if value is None and "None" in kind:
@@ -195,12 +235,10 @@ def problem_from_json(data: Any) -> PlanningProblem:
     """
     top = _object(data, "", _TOP, ("reference_line", "lane", "ego"))
     reference = _points(top["reference_line"], "reference_line", min_length=2)
-    lane_data = _object(top["lane"], "lane", {"left_width", "right_width"}, ("left_width", "right_width"))
     n = reference.shape[0]
-    lane = Lane(
-        left_width=_width(lane_data["left_width"], "lane.left_width", n),
-        right_width=_width(lane_data["right_width"], "lane.right_width", n),
-    )
+    lane = _widths(top["lane"], "lane", n, Lane)
+    road = None if top.get("road") is None else _widths(top["road"], "road", n, Road)
+    goal = None if top.get("goal") is None else _goal(top["goal"])
     obstacles = tuple(
         _obstacle(o, f"obstacles[{i}]") for i, o in enumerate(_list(top.get("obstacles", []), "obstacles"))
     )
@@ -241,6 +279,8 @@ def problem_from_json(data: Any) -> PlanningProblem:
         obstacles=obstacles,
         vehicle=vehicle,
         options=Options(**values),
+        road=road,
+        goal=goal,
     )
 
 
@@ -263,6 +303,20 @@ def _obstacle_json(ob: Obstacle) -> dict[str, Any]:
             {"t": t, "x": x, "y": y, "heading": h} for t, x, y, h in np.asarray(ob.prediction).tolist()
         ],
     }
+
+
+def _goal_json(goal: Goal) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    if isinstance(goal.position, GoalPolygon):
+        out["position"] = {"polygon": np.asarray(goal.position.polygon, dtype=float).tolist()}
+    elif isinstance(goal.position, GoalCircle):
+        center = [float(v) for v in goal.position.center]
+        out["position"] = {"circle": {"center": center, "radius": float(goal.position.radius)}}
+    for key in ("time", "speed"):
+        interval = getattr(goal, key)
+        if interval is not None:
+            out[key] = [float(v) for v in interval]
+    return out
 
 
 def problem_to_json(problem: PlanningProblem) -> dict[str, Any]:
@@ -289,4 +343,15 @@ def problem_to_json(problem: PlanningProblem) -> dict[str, Any]:
             **{k: float(getattr(v, k)) for k in CAR_FIELDS if getattr(v, k) is not None},
         },
         "options": {k: getattr(o, k) for k in _OPTION_TYPES},
+        **(
+            {}
+            if problem.road is None
+            else {
+                "road": {
+                    "left_width": _width_json(problem.road.left_width),
+                    "right_width": _width_json(problem.road.right_width),
+                }
+            }
+        ),
+        **({} if problem.goal is None else {"goal": _goal_json(problem.goal)}),
     }

@@ -476,11 +476,16 @@ def shift_obstacle(obstacle: Obstacle, t0: float) -> Obstacle:
 
 
 def problem_at(problem: PlanningProblem, state: VehicleState) -> PlanningProblem:
-    """The problem the planner gets at ``state.t``: the vehicle as ego, predictions shifted."""
+    """The problem the planner gets at ``state.t``: the vehicle as ego, predictions shifted, and the
+    request's goal window (seconds from now) counted from then."""
+    goal = problem.goal
+    if goal is not None and goal.time is not None:
+        goal = replace(goal, time=(goal.time[0] - state.t, goal.time[1] - state.t))
     return replace(
         problem,
         ego=state.as_ego(),
         obstacles=tuple(shift_obstacle(ob, state.t) for ob in problem.obstacles),
+        goal=goal,
     )
 
 

@@ -1,17 +1,20 @@
 r"""The cost of a speed profile: ``J`` with the soft constraints, the limit ``v_lim`` and its end form
 ``v_end``, and the violations (the problem, its grid and its hard constraints: :mod:`solvers.speed_problem`).
 
-Soft constraints, ``k = 1 … N``, with slacks ``σᵛ_k ≥ 0`` [m/s], ``σˢ_k ≥ 0`` [m] and ``σˡ_k ≥ 0`` [m]::
+Soft constraints, ``k = 1 … N``, with slacks ``σᵛ_k ≥ 0`` [m/s], ``σˢ_k ≥ 0`` [m], ``σˡ_k ≥ 0`` [m] and
+``σᵍ⁻_k, σᵍ⁺_k ≥ 0`` [m]::
 
     v_k ≤ v_lim(s_k) + σᵛ_k      (k < N)        path speed limit
     v_N ≤ v_end(s_N) + σᵛ_N                      … at the horizon's end, with room to brake beyond it
     s_k ≤ s_bound,k + σˢ_k,      s_bound,k = min(s_stop, s_upper,k)
     s_k ≥ s_lower,k − σˡ_k                       (only where s_lower,k is finite)
+    goal_lower,k − σᵍ⁻_k ≤ s_k ≤ goal_upper,k + σᵍ⁺_k   (only where finite)
 
 ``v_lim`` is the piecewise-linear interpolant of ``(limit_s, limit_v)``, constant beyond both ends (the caller
 computes it as ``min(max_speed, target, √(a_lat,max/|κ(s)|))``); ``s_upper`` is optional (``+∞`` where free),
 and so is ``s_lower`` (``−∞`` where free): a lower space-time bound, such as staying ahead of a vehicle that
-comes from behind.
+comes from behind; and so are a goal's bounds ``goal_lower``, ``goal_upper`` (where to be by when: not late,
+not early).
 ``v_end`` makes ``s_stop`` hold for all time, lets the next plan slow down for limits beyond the horizon
 and keeps the vehicle able to stay behind ``s_upper`` continued at its final rate
 ``u = max(0, (s_upper,N − s_upper,N−1)/Δt)``. With ``b = −a_min/2`` and ``c = b²/(2 j_max)``::
@@ -26,7 +29,8 @@ Constraints at ``k = 0`` are not imposed: the initial state is a measurement.
 Cost (``w·`` and ``ρ·`` are the fields of :class:`SpeedWeights`)::
 
     J = Σ_{k=1}^{N} Δt [w_speed (v_k − v_target)² + w_acc a_k²] + Σ_{k=0}^{N−1} Δt w_jerk j_k²
-      + Σ_{k=1}^{N} [ρ_v (σᵛ_k + σᵛ_k²/100) + ρ_s (σˢ_k + σˢ_k²/100) + ρ_l (σˡ_k + σˡ_k²/100)]
+      + Σ_{k=1}^{N} [ρ_v (σᵛ_k + σᵛ_k²/100) + ρ_s (σˢ_k + σˢ_k²/100) + ρ_l (σˡ_k + σˡ_k²/100)
+                     + ρ_g⁻ (σᵍ⁻_k + σᵍ⁻_k²/100) + ρ_g⁺ (σᵍ⁺_k + σᵍ⁺_k²/100)]
 
 The running terms are weighted by ``Δt`` (an integral over time), so the weights do not depend on the grid.
 The slack penalty is exact (ℓ1): when the soft constraints can be met, the optimum meets them exactly
@@ -48,6 +52,10 @@ times the number of knots involved (the default ``ρ_s = 100 ρ_l`` does; a rati
 staircase-shaped leader bound be overshot by 0.5 m). Likewise a speed excess ``δ`` over one step moves
 every later knot by ``δ·Δt``, so the speed limit outranks ``s_lower`` while ``ρ_v > ρ_l·N·Δt`` (default:
 10⁴ against 800 for 8 s).
+
+A goal's bounds give way to the others by the same argument, each imposed at one knot: ``ρ_g⁻ < ρ_s`` and
+``ρ_g⁻ Δt < ρ_v`` (a stop, a leader, the limit), ``ρ_g⁺ < ρ_l`` (a vehicle from behind); ``goal_lower`` and
+``s_lower`` never conflict.
 """
 
 from __future__ import annotations
@@ -64,6 +72,7 @@ __all__ = [
     "EndTerms",
     "end_speed_limit",
     "end_terms",
+    "goal_excess",
     "limit_at",
     "objective",
     "speed_limit",
@@ -161,6 +170,15 @@ def _follower_excess(problem: SpeedProblem, s: FloatArray) -> FloatArray:
     return np.where(tables.lower_finite, np.maximum(tables.lower_or_zero - s, 0.0), 0.0)
 
 
+def goal_excess(problem: SpeedProblem, s: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Per-knot violations ``(late, early)`` of ``goal_lower`` and ``goal_upper`` [m] (0 at knot 0 and where
+    free)."""
+    tables = problem.tables
+    if not tables.has_goal:
+        return np.zeros_like(s), np.zeros_like(s)
+    return np.maximum(tables.goal_lo - s, 0.0), np.maximum(s - tables.goal_hi, 0.0)
+
+
 def objective(problem: SpeedProblem, s: FloatArray, v: FloatArray, a: FloatArray, jerk: ArrayLike) -> float:
     """``J`` of the module docstring for a profile, with its true violations as the slacks."""
     w, dt = problem.weights, problem.dt
@@ -181,4 +199,8 @@ def objective(problem: SpeedProblem, s: FloatArray, v: FloatArray, a: FloatArray
         + w.position_violation * np.sum(e_s + QUADRATIC_SHARE * e_s**2)
         + w.follower_violation * np.sum(e_l + QUADRATIC_SHARE * e_l**2)
     )
+    if problem.tables.has_goal:
+        late, early = goal_excess(problem, s)
+        penalty += w.goal_late_violation * np.sum(late + QUADRATIC_SHARE * late**2)
+        penalty += w.goal_early_violation * np.sum(early + QUADRATIC_SHARE * early**2)
     return float(running + penalty)

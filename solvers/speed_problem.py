@@ -89,6 +89,14 @@ class SpeedWeights:
     exact for ``s_lower`` alone: keeping one metre further ahead costs about ``2·speed·|v − v_target|`` of
     running cost (a bound that holds the vehicle at 40 m/s against a target of 0: about 80).
 
+    A goal's bounds are aims; the planner imposes each at one knot. ``goal_late_violation`` (on
+    ``goal_lower``: not late) is a tenth of ``position_violation`` and of ``speed_violation``: a stop, an
+    obstacle ahead and the limit win a conflict, at one knot, and a follower's ``s_lower`` never conflicts
+    with it. ``goal_early_violation`` (on ``goal_upper``: not early) is half of ``follower_violation``: a
+    vehicle from behind wins. Both are exact where the goal asks for a speed within about ``ρ/2`` m/s of
+    ``v_target`` (a metre more or less costs about ``2·|v − v_target|``, spread over the horizon); beyond, the
+    profile misses the goal by what is worth more than that to the running cost.
+
     Attributes:
         speed: on ``Δt (v_k − v_target)²``.
         acceleration: on ``Δt a_k²``.
@@ -97,6 +105,10 @@ class SpeedWeights:
         position_violation: ρ_s, on ``σˢ_k + σˢ_k²/100`` (``σˢ`` in m).
         follower_violation: ρ_l, on ``σˡ_k + σˡ_k²/100`` (``σˡ`` in m); below ``position_violation`` for the
             upper bound to win a conflict.
+        goal_late_violation: ρ_g⁻, on ``σᵍ⁻_k + σᵍ⁻_k²/100`` (``σᵍ⁻`` in m, short of ``goal_lower``); below
+            ``position_violation``.
+        goal_early_violation: ρ_g⁺, on ``σᵍ⁺_k + σᵍ⁺_k²/100`` (``σᵍ⁺`` in m, past ``goal_upper``); below
+            ``follower_violation``.
     """
 
     speed: float = 1.0
@@ -105,6 +117,8 @@ class SpeedWeights:
     speed_violation: float = 1e4
     position_violation: float = 1e4
     follower_violation: float = 1e2
+    goal_late_violation: float = 1e3
+    goal_early_violation: float = 50.0
 
     def __post_init__(self) -> None:
         check_weights(self, zero_allowed=("acceleration",))
@@ -135,6 +149,10 @@ class SpeedProblem:
         s_lower: optional ``s(t_k) ≥ s_lower[k]`` [m], shape (N + 1,), ``−inf`` where free, no NaN or
             ``+inf`` (entry 0 is not imposed); softer than ``s_stop`` and ``s_upper`` where they conflict
             (``weights.follower_violation``).
+        goal_lower, goal_upper: optional ``goal_lower[k] ≤ s(t_k) ≤ goal_upper[k]`` [m], shape (N + 1,)
+            each, ``−inf`` / ``+inf`` where free, no NaN (entry 0 is not imposed), ``goal_lower ≤
+            goal_upper``: where a goal wants the vehicle by then (not late, not early); softer than
+            the others (``weights.goal_late_violation``, ``weights.goal_early_violation``).
         weights: cost weights.
     """
 
@@ -152,6 +170,8 @@ class SpeedProblem:
     s_stop: float = math.inf
     s_upper: FloatArray | None = None
     s_lower: FloatArray | None = None
+    goal_lower: FloatArray | None = None
+    goal_upper: FloatArray | None = None
     weights: SpeedWeights = field(default_factory=SpeedWeights)
 
     def __post_init__(self) -> None:
@@ -194,6 +214,15 @@ class SpeedProblem:
             put("s_upper", float_array("s_upper", self.s_upper, size=knots, allow_posinf=True))
         if self.s_lower is not None:
             put("s_lower", float_array("s_lower", self.s_lower, size=knots, allow_neginf=True))
+        if self.goal_lower is not None:
+            put("goal_lower", float_array("goal_lower", self.goal_lower, size=knots, allow_neginf=True))
+        if self.goal_upper is not None:
+            put("goal_upper", float_array("goal_upper", self.goal_upper, size=knots, allow_posinf=True))
+        if self.goal_lower is not None and self.goal_upper is not None:
+            crossed = np.flatnonzero(self.goal_lower[1:] > self.goal_upper[1:])
+            if crossed.size:
+                k = int(crossed[0]) + 1
+                raise ValueError(f"goal_lower: above goal_upper at knot {k} ({self.goal_lower[k]})")
         if not isinstance(self.weights, SpeedWeights):
             raise ValueError(f"weights: expected SpeedWeights, got {type(self.weights).__name__}")
 
@@ -256,6 +285,8 @@ class SpeedResult:
             needed.
         qp_solves: QPs solved (SQP iterations).
         follower_violation: largest ``s_lower,k − s_k`` over ``k ≥ 1``, or 0 [m].
+        goal_violation: largest ``max(goal_lower,k − s_k, s_k − goal_upper,k)`` over ``k ≥ 1``, or 0 [m] (an
+            aim missed, not a constraint broken: not part of ``max_violation``).
     """
 
     info: SolveInfo
@@ -269,6 +300,7 @@ class SpeedResult:
     max_violation: float
     qp_solves: int
     follower_violation: float = 0.0
+    goal_violation: float = 0.0
 
 
 def integrate_jerk(
@@ -314,6 +346,9 @@ class SpeedTables:
         lower: ``s_lower`` with entry 0 (not imposed) and a missing bound as ``−inf`` [m]; ``lower_finite``:
             where it is finite; ``lower_or_zero``: it, 0 where infinite; ``has_lower``: whether it is finite
             anywhere (the problem needs the QP with the ``σˡ`` slack).
+        goal_lo, goal_hi: ``goal_lower`` and ``goal_upper`` with entry 0 (not imposed) and a missing bound as
+            ``∓inf`` [m]; ``has_goal``: whether either is finite anywhere (the problem needs the QP with the
+            ``σᵍ`` slack).
         a_lo, a_hi: :meth:`SpeedProblem.accel_bounds`; v_lo, v_lo_half: :meth:`SpeedProblem.speed_floor`.
     """
 
@@ -334,6 +369,9 @@ class SpeedTables:
     lower_finite: NDArray[np.bool_]
     lower_or_zero: FloatArray
     has_lower: bool
+    goal_lo: FloatArray
+    goal_hi: FloatArray
+    has_goal: bool
     a_lo: FloatArray
     a_hi: FloatArray
     v_lo: FloatArray
@@ -394,6 +432,12 @@ class SpeedTables:
             lower[1:] = problem.s_lower[1:]
         lower_finite = np.isfinite(lower)
         lower_or_zero = np.where(lower_finite, lower, 0.0)
+        goal_lo = np.full(problem.steps + 1, -math.inf)
+        goal_hi = np.full(problem.steps + 1, math.inf)
+        if problem.goal_lower is not None:
+            goal_lo[1:] = problem.goal_lower[1:]
+        if problem.goal_upper is not None:
+            goal_hi[1:] = problem.goal_upper[1:]
         a_lo, a_hi = problem.accel_bounds()
         v_lo, v_lo_half = problem.speed_floor()
         tables = SpeedTables(
@@ -414,6 +458,9 @@ class SpeedTables:
             lower_finite=lower_finite,
             lower_or_zero=lower_or_zero,
             has_lower=bool(lower_finite.any()),
+            goal_lo=goal_lo,
+            goal_hi=goal_hi,
+            has_goal=bool(np.isfinite(goal_lo).any() or np.isfinite(goal_hi).any()),
             a_lo=a_lo,
             a_hi=a_hi,
             v_lo=v_lo,

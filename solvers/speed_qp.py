@@ -32,8 +32,10 @@ curvature as CasADi parameters and everything else as bounds, so nothing about i
 between requests (the limit profile may have any number of points; an unused piece gets an infinite bound).
 A problem whose ``s_lower`` is finite somewhere in ``k = 1 … N`` gets a second QP of that size, with ``σˡ``
 as a fourth input per stage and the row ``s_{k+1} + σˡ_{k+1} ≥ s_lower,k+1``; every other problem keeps the
-smaller one (one input and one row fewer per stage). The QP reads and writes numpy arrays directly
-(CasADi's function buffer), with no conversion per call.
+smaller one (one input and one row fewer per stage). Likewise a problem with a goal's bounds gets ``σᵍ⁻`` and
+``σᵍ⁺`` as the next inputs (from :attr:`SpeedQP.col_goal`) and the rows ``s_{k+1} + σᵍ⁻_{k+1} ≥
+goal_lower,k+1`` and ``s_{k+1} − σᵍ⁺_{k+1} ≤ goal_upper,k+1`` (from :attr:`SpeedQP.row_goal`). The QP
+reads and writes numpy arrays directly (CasADi's function buffer), with no conversion per call.
 """
 
 from __future__ import annotations
@@ -127,16 +129,19 @@ class SpeedQP:
     ``limit_rows``: views of ``p`` and ``ubg`` in the shape ``(PIECES, N)`` of :func:`local_model`), call
     :meth:`solve`, then read ``x`` (``jerk``) and ``lam_g`` (``end_multipliers``): the next call overwrites
     them. The outputs the solver does not read are not copied. The initial guesses are zero, as in a call
-    without them. ``width`` is the number of variables per stage (3 states, then 3 inputs, or 4 with the
-    lower bound's slack) and ``rows`` that of rows; ``function`` is CasADi's ``qpsol`` function.
+    without them. ``width`` is the number of variables per stage (3 states, then 3 inputs, one more with
+    the lower bound's slack and two more with the goal's) and ``rows`` that of rows; ``col_goal`` and
+    ``row_goal`` are the goal's first slack column and row (late, then early; None without a goal);
+    ``function`` is CasADi's ``qpsol`` function.
     """
 
-    def __init__(self, function: Any, steps: int, lower: bool = False) -> None:
+    def __init__(self, function: Any, steps: int, lower: bool = False, goal: bool = False) -> None:
         n = self.steps = steps
-        self.lower = lower
-        self.width = (COL_SIGMA_L if lower else COL_SIGMA_S) + 1
-        self.rows = (ROW_LOWER if lower else ROW_POSITION) + 1
-        width, rows = self.width, self.rows
+        self.lower, self.goal = lower, goal
+        width, rows = _layout(lower, goal)
+        self.width, self.rows = width, rows
+        self.col_goal = width - 2 if goal else None
+        self.row_goal = rows - 2 if goal else None
         self.p = np.zeros(P_SLOPES + PIECES * n)
         self.lbx = np.zeros(width * n + STATES)
         self.ubx = np.zeros(width * n + STATES)
@@ -183,6 +188,9 @@ class SpeedQP:
         if self.lower:
             lbg[ROW_LOWER] = tables.lower[1:] - problem.s0  # may be −inf
             ubg[ROW_LOWER] = np.inf
+        if self.row_goal is not None:
+            lbg[self.row_goal], ubg[self.row_goal] = tables.goal_lo[1:] - problem.s0, np.inf  # may be −inf
+            lbg[self.row_goal + 1], ubg[self.row_goal + 1] = -np.inf, tables.goal_hi[1:] - problem.s0
 
     def solve(self) -> tuple[int, int]:
         """Solve the QP in the arrays: ``(HPIPM's return flag, its iterations)``; the flag is a
@@ -209,14 +217,29 @@ class SpeedQP:
         return int(stats.get("return_status", -1)), int(stats.get("iter_count", 0))
 
 
+def _layout(lower: bool, goal: bool) -> tuple[int, int]:
+    """Variables and rows per stage of the QP with or without the lower bound's and the goal's slacks."""
+    width = (COL_SIGMA_L if lower else COL_SIGMA_S) + 1 + (2 if goal else 0)
+    rows = (ROW_LOWER if lower else ROW_POSITION) + 1 + (2 if goal else 0)
+    return width, rows
+
+
 def build_speed_qp(
-    steps: int, dt: float, w: SpeedWeights, lower: bool = False, settings: HpipmSettings | None = None
+    steps: int,
+    dt: float,
+    w: SpeedWeights,
+    lower: bool = False,
+    settings: HpipmSettings | None = None,
+    *,
+    goal: bool = False,
 ) -> SpeedQP:
     """The CasADi/HPIPM QP of the module docstring for ``steps`` steps of ``dt`` [s] and weights ``w``;
-    with ``lower``, the one with the lower position bound's slack and row."""
+    with ``lower``, the one with the lower position bound's slack and row; with ``goal``, the goal's slack
+    and rows."""
     n = steps
+    width, n_rows = _layout(lower, goal)
     X = ca.SX.sym("x", STATES, n + 1)
-    U = ca.SX.sym("u", (COL_SIGMA_L if lower else COL_SIGMA_S) + 1 - STATES, n)
+    U = ca.SX.sym("u", width - STATES, n)
     p = ca.SX.sym("p", P_SLOPES + PIECES * n)
     v_target, curvature, v_hat = p[P_V_TARGET], p[P_END_CURVATURE], p[P_V_HAT]
     slope = ca.reshape(p[P_SLOPES:], PIECES, n)
@@ -233,7 +256,7 @@ def build_speed_qp(
         + w.position_violation * (ca.sum2(sig_s) + QUADRATIC_SHARE * ca.sumsqr(sig_s))
         + curvature / 2 * (X[COL_V, n] - v_hat) ** 2
     )
-    rows: list[Any] = [None] * ((ROW_LOWER if lower else ROW_POSITION) + 1)
+    rows: list[Any] = [None] * n_rows
     rows[ROW_DYNAMICS : ROW_DYNAMICS + STATES] = [s1 - X[COL_S, 1:], v1 - X[COL_V, 1:], a1 - X[COL_A, 1:]]
     rows[ROW_HALF_SPEED] = v_half
     rows[ROW_LIMIT : ROW_LIMIT + PIECES] = [v1 - slope[i, :] * s1 - sig_v for i in range(PIECES)]
@@ -242,9 +265,12 @@ def build_speed_qp(
         sig_l = U[COL_SIGMA_L - STATES, :]
         rows[ROW_LOWER] = s1 + sig_l
         cost += w.follower_violation * (ca.sum2(sig_l) + QUADRATIC_SHARE * ca.sumsqr(sig_l))
-    g = ca.vertcat(*rows)
-    width, n_rows = STATES + U.shape[0], g.shape[0]
-    g = ca.reshape(g, n_rows * n, 1)
+    if goal:
+        late, early = U[width - 2 - STATES, :], U[width - 1 - STATES, :]
+        rows[n_rows - 2 :] = [s1 + late, s1 - early]
+        cost += w.goal_late_violation * (ca.sum2(late) + QUADRATIC_SHARE * ca.sumsqr(late))
+        cost += w.goal_early_violation * (ca.sum2(early) + QUADRATIC_SHARE * ca.sumsqr(early))
+    g = ca.reshape(ca.vertcat(*rows), n_rows * n, 1)
     z = ca.vertcat(ca.reshape(ca.vertcat(X[:, :n], U), width * n, 1), X[:, n])
     options: dict[str, Any] = {
         "error_on_fail": False,  # a QP that does not converge is a return flag, read from the statistics
@@ -257,7 +283,7 @@ def build_speed_qp(
         "ng": [n_rows - STATES] * n + [0],
     }
     function = ca.qpsol("speed_qp", "hpipm", {"x": z, "p": p, "f": cost, "g": g}, options)
-    return SpeedQP(function, n, lower)
+    return SpeedQP(function, n, lower, goal)
 
 
 def local_model(

@@ -7,15 +7,17 @@ trial is dynamically feasible, since the dynamics are linear and the boxes conve
 the model agrees with the limit at the QP's solution, wherever the speed is at the limit, to ``tolerance``
 (100 × that at ``k = N``, a braking margin rather than a limit). ``s̄`` starts from the previous solution
 shifted in time (warm start) or from a forward–backward pass of the limit along the path, timed (cold
-start), raised to ``s_lower`` and then capped by ``s_bound`` (the upper bound wins there too).
+start), raised to ``s_lower`` and a goal's lower bound and then capped by a goal's upper bound and by
+``s_bound`` (the upper bounds win there too).
 
 The problem is not convex, and at a sharp dip the SQP can end in a local minimum of the penalty function
 that violates the limit. So when the result violates the limit, ``v ≥ 0`` or ``s_bound`` although
-:func:`~solvers.speed_profiles.braking_profile` (a full stop) meets them (``s_lower`` aside: a full stop
-rarely keeps ahead of anything), the SQP runs once more from that stop and the result with the lower
-penalty function is kept. A QP that HPIPM stops early (iteration limit, minimum step) is used if its
-iterate is finite and within the boxes, never as converged. The returned profile is re-integrated from the
-jerks with the dynamics, so it meets them to rounding error whatever the QP's accuracy.
+:func:`~solvers.speed_profiles.braking_profile` (a full stop) meets them (``s_lower`` and a goal's bounds
+aside: a full stop rarely keeps ahead of anything), the SQP runs once more from that stop and the result
+with the lower penalty function is kept. A QP that HPIPM stops early (iteration limit, minimum step) is
+used if its iterate is finite and within the boxes, never as converged. The returned profile is
+re-integrated from the jerks with the dynamics, so it meets them to rounding error whatever the QP's
+accuracy.
 
 Statuses (:class:`~solvers.result.SolverStatus`):
 
@@ -41,7 +43,7 @@ from typing import Literal
 import numpy as np
 
 from solvers.result import Extra, SolveInfo, SolverStatus
-from solvers.speed_cost import end_speed_limit, end_terms, objective, violations
+from solvers.speed_cost import end_speed_limit, end_terms, goal_excess, objective, violations
 from solvers.speed_problem import PIECES, FloatArray, SpeedProblem, SpeedResult, SpeedWeights, integrate_jerk
 from solvers.speed_profiles import braking_profile
 from solvers.speed_qp import (
@@ -81,11 +83,15 @@ Stop = Literal["converged", "max_iterations", "line_search", "qp_failed"]
 
 
 def _cap(problem: SpeedProblem, s_bar: FloatArray) -> FloatArray:
-    """``s_bar`` (relative to s0) raised to ``s_lower`` at and before each knot, then capped by the bounds
-    at and ahead of each knot (the upper bounds win), non-decreasing, ≥ 0."""
+    """``s_bar`` (relative to s0) raised to ``s_lower`` and a goal's lower bound at and before each knot,
+    then capped by a goal's upper bound and then by the bounds at and ahead of each knot (the upper bounds
+    win, the hard ones last), non-decreasing, ≥ 0."""
     tables = problem.tables
     if tables.has_lower:
         s_bar = np.maximum(s_bar, np.maximum.accumulate(tables.lower - problem.s0))
+    if tables.has_goal:
+        s_bar = np.maximum(s_bar, np.maximum.accumulate(tables.goal_lo - problem.s0))
+        s_bar = np.minimum(s_bar, np.minimum.accumulate((tables.goal_hi - problem.s0)[::-1])[::-1])
     s_bar = np.minimum(s_bar, tables.s_bound - problem.s0)
     s_bar = np.minimum.accumulate(s_bar[::-1])[::-1]
     return np.maximum(s_bar, 0.0)
@@ -246,24 +252,26 @@ class SpeedSolver:
         self._max_cached = integer("max_cached", max_cached, low=1)
         self._restore_violation = float(restore_violation)
         self._hpipm = HpipmSettings(residual=float(qp_residual))
-        self._qps: OrderedDict[tuple[int, float, SpeedWeights, bool], SpeedQP] = OrderedDict()
+        self._qps: OrderedDict[tuple[int, float, SpeedWeights, bool, bool], SpeedQP] = OrderedDict()
         self._build_count = 0
 
     @property
     def build_count(self) -> int:
         """How many QPs this solver has built (one per new ``(N, Δt, weights)`` still in the cache, and per
-        whether the problem has a lower bound)."""
+        whether the problem has a lower bound and a goal's bounds)."""
         return self._build_count
 
     def _qp(self, problem: SpeedProblem) -> tuple[SpeedQP, float]:
         """The QP for ``problem``'s key (built if new) and the time building it took [ms] (0 if cached)."""
-        key = (problem.steps, problem.dt, problem.weights, problem.tables.has_lower)
+        tables = problem.tables
+        key = (problem.steps, problem.dt, problem.weights, tables.has_lower, tables.has_goal)
         qp = self._qps.get(key)
         if qp is not None:
             self._qps.move_to_end(key)
             return qp, 0.0
         start = time.perf_counter()
-        qp = self._qps[key] = build_speed_qp(*key, settings=self._hpipm)
+        steps, dt, weights, lower, goal = key
+        qp = self._qps[key] = build_speed_qp(steps, dt, weights, lower, self._hpipm, goal=goal)
         self._build_count += 1
         while len(self._qps) > self._max_cached:
             self._qps.popitem(last=False)
@@ -339,6 +347,7 @@ class SpeedSolver:
         e_v, e_s, e_l = violations(problem, s, v)
         speed_violation, position_violation = float(np.max(e_v)), float(np.max(e_s))
         follower_violation = float(np.max(e_l))
+        goal_violation = float(max(np.max(e) for e in goal_excess(problem, s)))
         max_violation = max(speed_violation, position_violation, follower_violation)
         message = f"SQP from a {origin} start: {qp_solves} QPs, {ipm_iterations} HPIPM iterations"
         if best is not None and max(speed_violation, position_violation) > _REPORTED_VIOLATION:
@@ -347,6 +356,8 @@ class SpeedSolver:
             )
         if best is not None and follower_violation > _REPORTED_VIOLATION:
             notes.append(f"s_lower violated by up to {follower_violation:.3g} m")
+        if best is not None and goal_violation > _REPORTED_VIOLATION:
+            notes.append(f"the goal's bounds missed by up to {goal_violation:.3g} m")
         if notes:
             message += "; " + "; ".join(notes)
         extras: dict[str, Extra] = {
@@ -384,6 +395,7 @@ class SpeedSolver:
             max_violation=max_violation,
             qp_solves=qp_solves,
             follower_violation=follower_violation,
+            goal_violation=goal_violation,
         )
 
     def _sqp(self, problem: SpeedProblem, qp: SpeedQP, s_bar: FloatArray, v_end: float, budget: int) -> _Run:

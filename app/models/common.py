@@ -23,11 +23,12 @@ from app.limits import (
     MIN_REFERENCE_POINTS,
 )
 
-#: labels of union members (lane widths, obstacles); pydantic puts them in error locations, the error
-#: handler drops them
+#: labels of union members (lane widths, obstacles, goal positions); pydantic puts them in error
+#: locations, the error handler drops them
 SCALAR_WIDTH, PER_POINT_WIDTH = "<scalar width>", "<per-point widths>"
 POLYGON, CIRCLE, DYNAMIC = "<polygon obstacle>", "<circle obstacle>", "<dynamic obstacle>"
-UNION_TAGS = frozenset({SCALAR_WIDTH, PER_POINT_WIDTH, POLYGON, CIRCLE, DYNAMIC})
+GOAL_POLYGON, GOAL_CIRCLE = "<goal polygon>", "<goal circle>"
+UNION_TAGS = frozenset({SCALAR_WIDTH, PER_POINT_WIDTH, POLYGON, CIRCLE, DYNAMIC, GOAL_POLYGON, GOAL_CIRCLE})
 
 
 class RequestModel(BaseModel):
@@ -50,6 +51,15 @@ def number(ge: float | None = None, gt: float | None = None, le: float | None = 
 Coordinate = Annotated[float, number(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
 Point = Annotated[tuple[Coordinate, Coordinate], Field(description="[x, y] [m]")]
 FrenetPoint = Annotated[tuple[Coordinate, Coordinate], Field(description="[s, d] [m]")]
+
+
+def polygon_area(polygon: list[tuple[float, float]]) -> float:
+    """Area enclosed by a polygon's outline [m²] (shoelace, relative to a vertex: no cancellation far
+    from the origin)."""
+    p = np.asarray(polygon, dtype=float)
+    p = p - p[0]
+    q = np.roll(p, -1, axis=0)
+    return 0.5 * abs(float(np.sum(p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1])))
 
 
 def field_error(loc: tuple[str | int, ...], kind: str, message: str, value: Any) -> ValidationError:

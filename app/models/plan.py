@@ -14,6 +14,7 @@ from pydantic.json_schema import SkipJsonSchema
 
 from app.models.candidates import Candidate
 from app.models.common import ResponseModel
+from planner.goal import GoalReason, GoalStatus
 from planner.result import Status as PlanStatus
 from planner.speed import ProfileKind
 from planner.timing import STAGES as PLANNER_STAGES
@@ -123,14 +124,47 @@ class RequestTiming(ResponseModel):
     ran_ms: float = Field(description="The plan, from its start until its trajectory was ready.")
 
 
+class GoalDiagnostics(ResponseModel):
+    """What the trajectory does with the request's `goal`: judged at its samples, with the footprint's
+    centre (`x`, `y`) inside the region (boundary included), `t` in the window and `v` within 0.001 m/s
+    of the speed range, for each part given."""
+
+    status: GoalStatus = Field(
+        description="`reached`: the trajectory meets the goal at some sample (`t`: the first); "
+        "`on_the_way`: not within the horizon, which ends before the region or the window, and nothing "
+        "found prevents it; `unreachable`: something prevents it (`reason`)."
+    )
+    t: float | SkipJsonSchema[None] = Field(
+        None, description="The first time the goal is met [s]; present exactly when `reached`."
+    )
+    reason: GoalReason | SkipJsonSchema[None] = Field(
+        None,
+        description="Why the goal cannot be met; present exactly when `unreachable`. `window_ended`: "
+        "before now; `behind`: the region lies behind the vehicle; `off_road`: no point of it is within "
+        "the lane for the vehicle's centre (or beyond the reference's end); `too_far`: not reachable "
+        "before the window closes within the speed limit (`options.speed_limit`, else the target) and "
+        "acceleration; `too_early`: the trajectory passes it before the window opens; `speed_range`: "
+        "the speed range is above the speed limit, or the vehicle is never in it while inside; "
+        "`blocked`: the road or traffic stops the vehicle before the region; `missed`: the trajectory "
+        "passes beside the region; `fallback`: the plan fell back and its braking trajectory does not "
+        "meet the goal.",
+    )
+    message: str = Field(description="Why, in words.")
+
+
 class PlanDiagnostics(ResponseModel):
-    """What each stage of the planner did, and how long the request waited and ran."""
+    """What each stage of the planner did, what the trajectory does with the goal, and how long the
+    request waited and ran."""
 
     candidates: CandidateCounts
     lateral_qp: LateralSolveInfo
     speed: SpeedSolveInfo
     timing_ms: PlanTiming
     request: RequestTiming
+    goal: GoalDiagnostics | SkipJsonSchema[None] = Field(
+        None,
+        description="What the trajectory does with the request's `goal`; present exactly when it has one.",
+    )
 
 
 class PlanResponse(ResponseModel):

@@ -63,7 +63,9 @@ from app.models.common import (
     RequestModel,
     field_error,
     number,
+    polygon_area,
 )
+from app.models.goal import Goal
 from planner import problem as pp
 
 Heading = Annotated[float, number(ge=-MAX_HEADING, le=MAX_HEADING)]
@@ -102,6 +104,16 @@ class Lane(RequestModel):
     right_width: LaneWidth = Field(description="Width to the right of the reference [m].")
 
 
+class Road(RequestModel):
+    """The drivable surface either side of the reference [m], beyond the lane (adjacent lanes of either
+    direction, the opposite lane, shoulders): one width for the whole road, or one per reference point,
+    like the lane's; on each side at least the lane's. The vehicle keeps to its lane and leaves it for
+    the road only to get past what blocks the lane (`diagnostics.decision` says when)."""
+
+    left_width: LaneWidth = Field(description="Width of the road to the left of the reference [m].")
+    right_width: LaneWidth = Field(description="Width of the road to the right of the reference [m].")
+
+
 class PolygonObstacle(RequestModel):
     """A static obstacle given by its outline."""
 
@@ -117,11 +129,7 @@ class PolygonObstacle(RequestModel):
     @field_validator("polygon")
     @classmethod
     def _non_degenerate(cls, polygon: list[tuple[float, float]]) -> list[tuple[float, float]]:
-        p = np.asarray(polygon, dtype=float)
-        p = p - p[0]  # shoelace relative to a vertex: no cancellation far from the origin
-        q = np.roll(p, -1, axis=0)
-        area = 0.5 * abs(float(np.sum(p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1])))
-        if not area > MIN_POLYGON_AREA:
+        if not polygon_area(polygon) > MIN_POLYGON_AREA:
             raise PydanticCustomError(
                 "degenerate_polygon",
                 "the polygon has no area: its points coincide or are collinear",
@@ -371,7 +379,15 @@ class Options(RequestModel):
         ge=0.0,
         le=MAX_VEHICLE_SPEED,
         default=_OPTIONS.target_speed,
-        description="Desired speed [m/s]; null means the vehicle's max_speed.",
+        description="Desired speed [m/s]; null means the vehicle's max_speed (within speed_limit).",
+    )
+    speed_limit: float | None = number(
+        ge=0.0,
+        le=MAX_VEHICLE_SPEED,
+        default=_OPTIONS.speed_limit,
+        description="Highest speed allowed [m/s], at least target_speed: the vehicle cruises at the target "
+        "and may drive faster, up to this, to keep clear of a vehicle from behind or to meet the goal's "
+        "time window. null: the target speed is the limit.",
     )
     num_candidates: int = Field(
         _OPTIONS.num_candidates, strict=True, ge=1, le=MAX_CANDIDATES, description="Candidate paths."
@@ -401,6 +417,14 @@ class Options(RequestModel):
 
     @model_validator(mode="after")
     def _answer_size(self) -> Options:
+        limit, target = self.speed_limit, self.target_speed
+        if limit is not None and target is not None and limit < target:
+            raise field_error(
+                ("speed_limit",),
+                "speed_limit_below_target",
+                f"speed_limit = {limit} m/s is below target_speed = {target} m/s",
+                limit,
+            )
         if self.dt > self.horizon_time:
             raise field_error(
                 ("dt",),
@@ -435,6 +459,10 @@ class PlanningRequest(RequestModel):
     ego: Ego
     vehicle: Vehicle = Field(default_factory=Vehicle)
     options: Options = Field(default_factory=Options)
+    road: Road | None = Field(
+        None, description="The whole road beyond the lane; null: the vehicle keeps to its lane."
+    )
+    goal: Goal | None = Field(None, description="Where to be, when and how fast; null: no goal.")
 
     @field_validator("obstacles")
     @classmethod
@@ -467,14 +495,29 @@ class PlanningRequest(RequestModel):
     @model_validator(mode="after")
     def _widths_match_reference(self) -> PlanningRequest:
         n = len(self.reference_line)
-        for name in ("left_width", "right_width"):
-            width = getattr(self.lane, name)
-            if isinstance(width, list) and len(width) != n:
-                raise field_error(
-                    ("lane", name),
-                    "width_length",
-                    f"has {len(width)} values but reference_line has {n} points; "
-                    "give one width per reference point or a single number",
-                    len(width),
-                )
+        for key, widths in (("lane", self.lane), ("road", self.road)):
+            for name in ("left_width", "right_width"):
+                width = getattr(widths, name, None)
+                if isinstance(width, list) and len(width) != n:
+                    raise field_error(
+                        (key, name),
+                        "width_length",
+                        f"has {len(width)} values but reference_line has {n} points; "
+                        "give one width per reference point or a single number",
+                        len(width),
+                    )
+        if self.road is not None:
+            for name in ("left_width", "right_width"):
+                lane, road = np.broadcast_arrays(getattr(self.lane, name), getattr(self.road, name))
+                narrow = np.flatnonzero(np.atleast_1d(road < lane))
+                if narrow.size:
+                    i = int(narrow[0])
+                    per_point = isinstance(getattr(self.road, name), list)
+                    raise field_error(
+                        ("road", name, i) if per_point else ("road", name),
+                        "road_narrower_than_lane",
+                        f"{float(np.atleast_1d(road)[i])} m is narrower than the lane's "
+                        f"{float(np.atleast_1d(lane)[i])} m: the road holds the lane",
+                        float(np.atleast_1d(road)[i]),
+                    )
         return self

@@ -1,5 +1,5 @@
 """The request bodies of the computing routes, for the OpenAPI document: their schema and the examples
-it shows (all from the demo).
+it shows (all from the demo; ``/v1/plan`` also with a goal).
 
 The routes read their bodies as bytes and have them parsed and validated in a plan process
 (:mod:`app.jobs`), so FastAPI does not see the models: :func:`json_body` declares them, and
@@ -12,7 +12,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from app.conversions import demo_request
+from app.conversions import demo_goal, demo_request
 from app.models.planning import PlanningRequest
 
 #: the models of the request bodies (their schemas go in the document's components)
@@ -28,14 +28,25 @@ def json_body(model: type[BaseModel], examples: dict[str, Any]) -> dict[str, Any
     return {"requestBody": {"content": content, "required": True}}
 
 
-#: the body of ``/v1/candidates`` and ``/v1/plan``, with the demo request as its example
-PLANNING_BODY = json_body(
+#: the demo request as an example
+DEMO_EXAMPLE = {
+    "summary": "The demo U-turn (GET /v1/demo)",
+    "value": demo_request().model_dump(mode="json", exclude_none=True),
+}
+
+#: the body of ``/v1/candidates``, with the demo request as its example
+PLANNING_BODY = json_body(PlanningRequest, {"demo": DEMO_EXAMPLE})
+#: the body of ``/v1/plan``: the demo, and the demo with a goal
+PLAN_BODY = json_body(
     PlanningRequest,
     {
-        "demo": {
-            "summary": "The demo U-turn (GET /v1/demo)",
-            "value": demo_request().model_dump(mode="json", exclude_none=True),
-        }
+        "demo": DEMO_EXAMPLE,
+        "goal": {
+            "summary": "The demo with a goal: stop past the U-turn between 5 and 9 s from now",
+            "value": demo_request()
+            .model_copy(update={"goal": demo_goal()})
+            .model_dump(mode="json", exclude_none=True),
+        },
     },
 )
 

@@ -14,7 +14,7 @@ from app.compute import compute
 from app.deps import PlanExecutorDep, SettingsDep
 from app.errors import COMPUTE_RESPONSES
 from app.models.plan import PlanResponse
-from app.routes.examples import PLANNING_BODY
+from app.routes.examples import PLAN_BODY
 
 router = APIRouter(prefix="/v1", tags=["planning"], responses=COMPUTE_RESPONSES)
 
@@ -24,7 +24,7 @@ router = APIRouter(prefix="/v1", tags=["planning"], responses=COMPUTE_RESPONSES)
     operation_id="plan_trajectory",
     summary="Plan a trajectory: candidate paths, lateral QP, speed profile",
     response_model=PlanResponse,
-    openapi_extra=PLANNING_BODY,
+    openapi_extra=PLAN_BODY,
 )
 async def plan_trajectory(request: Request, settings: SettingsDep, executor: PlanExecutorDep) -> Response:
     """Trajectory from the ego every `options.dt` [s]; a planning failure is a 200 with status `fallback`."""

@@ -4,6 +4,7 @@ would be a wrong answer."""
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 import pydantic_core
@@ -11,9 +12,13 @@ import pytest
 
 from app.conversions import demo_request, from_problem, plan_data, to_problem
 from app.models.plan import STAGES, PlanResponse
+from planner.goal import Goal, GoalCircle, GoalPolygon
 from planner.pipeline import plan
+from planner.problem import Road
 from planner.result import PlanResult
 from planner.roads import demo_problem
+
+DEMO_POINTS = demo_problem().reference_line.shape[0]
 
 
 @pytest.fixture(scope="module")
@@ -21,8 +26,22 @@ def demo_plan() -> PlanResult:
     return plan(to_problem(demo_request()))
 
 
-def test_problem_round_trip() -> None:
-    problem = demo_problem()
+@pytest.mark.parametrize(
+    "extra",
+    [
+        {},
+        {
+            "road": Road(left_width=np.full(DEMO_POINTS, 19.0), right_width=12.0),
+            "goal": Goal(GoalPolygon(np.array([[0.0, 0.0], [4, 0], [0, 3]])), (1.0, 2.0), (0.0, 1.0)),
+        },
+        {"goal": Goal(GoalCircle(np.array([1.0, 2.0]), 3.0))},
+        {"goal": Goal(time=(-1.0, 5.0))},
+    ],
+    ids=["demo", "road-and-polygon-goal", "circle-goal", "time-goal"],
+)
+def test_problem_round_trip(extra: dict[str, Any]) -> None:
+    problem = dataclasses.replace(demo_problem(), **extra)
+    problem = dataclasses.replace(problem, options=dataclasses.replace(problem.options, speed_limit=12.5))
     again = to_problem(from_problem(problem))
     assert np.array_equal(again.reference_line, problem.reference_line)
     assert again.lane == problem.lane
@@ -32,6 +51,19 @@ def test_problem_round_trip() -> None:
     assert len(again.obstacles) == len(problem.obstacles)
     for a, b in zip(again.obstacles, problem.obstacles, strict=True):
         assert type(a) is type(b) and a.id == b.id
+    assert (again.road is None) == (problem.road is None)
+    if problem.road is not None and again.road is not None:
+        for side in ("left_width", "right_width"):
+            np.testing.assert_array_equal(getattr(again.road, side), getattr(problem.road, side))
+    assert (again.goal is None) == (problem.goal is None)
+    if problem.goal is not None and again.goal is not None:
+        assert (again.goal.time, again.goal.speed) == (problem.goal.time, problem.goal.speed)
+        assert type(again.goal.position) is type(problem.goal.position)
+        for name in ("polygon", "center", "radius"):
+            if hasattr(problem.goal.position, name):
+                np.testing.assert_array_equal(
+                    getattr(again.goal.position, name), getattr(problem.goal.position, name)
+                )
 
 
 #: a request's budget and what it spent [ms]

@@ -150,9 +150,20 @@ def largest_request() -> dict[str, Any]:
         for i in range(api.MAX_OBSTACLES)
     ]
     width = [3.1234567890123457] * n
+    wider = [13.123456789012346] * n
+    goal = [
+        [_LONG + 0.12345678901234567 * k, _LONG + 0.0012345678901234567 * k**2]
+        for k in range(api.MAX_POLYGON_POINTS)
+    ]
     return {
         "reference_line": road,
         "lane": {"left_width": width, "right_width": width},
+        "road": {"left_width": wider, "right_width": wider},
+        "goal": {
+            "position": {"polygon": goal},
+            "time": [-123456.78901234567, 123456.78901234567],
+            "speed": [1.2345678901234567, 12.345678901234567],
+        },
         "obstacles": obstacles,
         "ego": {
             "x": _LONG,
@@ -175,6 +186,7 @@ def largest_request() -> dict[str, Any]:
             "horizon_time": 12.345678901234567,
             "dt": 0.12345678901234567,
             "target_speed": 12.345678901234567,
+            "speed_limit": 123.45678901234568,
             "num_candidates": api.MAX_TOTAL_CANDIDATE_POINTS // api.MAX_POINTS_PER_CANDIDATE,
             "num_points": api.MAX_POINTS_PER_CANDIDATE,
             "generator": "transf_kappa",
@@ -195,6 +207,8 @@ def test_the_largest_valid_request_fits_the_body_limit() -> None:
     assert (
         len(request.obstacles) == api.MAX_OBSTACLES
         and len(request.reference_line) == api.MAX_REFERENCE_POINTS
+        and request.road is not None
+        and request.goal is not None
     )
 
 

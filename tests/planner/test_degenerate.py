@@ -591,6 +591,8 @@ def test_every_bound_the_api_accepts_the_library_accepts(section: str, name: str
     if section == "vehicle" and name in CAR_FIELDS:  # a car: the demo's vehicle with a wheelbase
         body["vehicle"].update(wheelbase=2.7, rear_axle_offset=1.35)
     body[section][name] = value
+    if name == "speed_limit":  # at least the target speed
+        body["options"]["target_speed"] = min(body["options"]["target_speed"], value)
     if body["options"]["dt"] > body["options"]["horizon_time"]:  # refused as a whole by the API
         with pytest.raises(ValidationError, match=r"options\.dt"):
             api.PlanningRequest.model_validate(body)

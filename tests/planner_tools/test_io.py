@@ -22,8 +22,17 @@ COMMONROAD = sorted(p for p in (ROOT / "tests/data/commonroad").glob("*.json") i
 
 def _same(a: PlanningProblem, b: PlanningProblem) -> None:
     np.testing.assert_array_equal(a.reference_line, b.reference_line)
-    for side in ("left_width", "right_width"):
-        np.testing.assert_array_equal(getattr(a.lane, side), getattr(b.lane, side))
+    assert (a.road is None) == (b.road is None)
+    for widths_a, widths_b in ((a.lane, b.lane), (a.road, b.road)):
+        for side in ("left_width", "right_width"):
+            np.testing.assert_array_equal(getattr(widths_a, side, 0), getattr(widths_b, side, 0))
+    assert (a.goal is None) == (b.goal is None)
+    if a.goal is not None and b.goal is not None:
+        assert (a.goal.time, a.goal.speed) == (b.goal.time, b.goal.speed)
+        assert type(a.goal.position) is type(b.goal.position)
+        for name in ("polygon", "center", "radius"):
+            if hasattr(a.goal.position, name):
+                np.testing.assert_array_equal(getattr(a.goal.position, name), getattr(b.goal.position, name))
     assert (a.ego, a.vehicle, a.options) == (b.ego, b.vehicle, b.options)
     assert [type(o) for o in a.obstacles] == [type(o) for o in b.obstacles]
     for x, y in zip(a.obstacles, b.obstacles, strict=True):
@@ -62,6 +71,28 @@ def test_reader_reads_a_car_as_the_http_layer_does() -> None:
     assert err.value.field == "vehicle.rear_axle_offset"
 
 
+@pytest.mark.parametrize(
+    "extra",
+    [
+        {"road": {"left_width": 19.0, "right_width": 8.0}, "goal": {"time": [0.0, 4.0], "speed": [0.0, 2.0]}},
+        {"goal": {"position": {"polygon": [[0, 0], [5, 0], [5, 5]]}}},
+        {"goal": {"position": {"circle": {"center": [3, 4], "radius": 2}}, "time": [-1.0, 1.0]}},
+    ],
+)
+def test_reader_reads_road_goal_and_speed_limit_as_the_http_layer_does(extra: dict[str, Any]) -> None:
+    data = {**_demo(), **extra}
+    data["options"].update(target_speed=5.0, speed_limit=9.0)
+    problem = problem_from_json(data)
+    _same(problem, to_problem(PlanningRequest.model_validate(data)))
+    _same(problem_from_json(json.loads(json.dumps(problem_to_json(problem)))), problem)
+    assert problem.options.speed_limit == 9.0
+
+
+#: a polygon without area
+LINE = [[0, 0], [1, 0], [2, 0]]
+NO_RADIUS = {"center": [0, 0]}
+
+
 def _demo() -> dict[str, Any]:
     return demo_request().model_dump(mode="json")
 
@@ -82,6 +113,13 @@ def _demo() -> dict[str, Any]:
         (lambda d: d["obstacles"][0]["circle"].update(radius=-1.0), "obstacles[0].circle.radius"),
         (lambda d: d["reference_line"][3].append(1.0), "reference_line[3]"),
         (lambda d: d["reference_line"][0].__setitem__(0, float("nan")), "reference_line[0][0]"),
+        (lambda d: d.update(road={"left_width": 0.5, "right_width": 9.0}), "road.left_width"),
+        (lambda d: d.update(road={"left_width": 19.0}), "road.right_width"),
+        (lambda d: d["options"].update(target_speed=5.0, speed_limit=4.0), "options.speed_limit"),
+        (lambda d: d.update(goal={"time": [3.0, 1.0]}), "goal.time"),
+        (lambda d: d.update(goal={"speed": [0.0]}), "goal.speed"),
+        (lambda d: d.update(goal={"position": {"circle": NO_RADIUS}}), "goal.position.circle.radius"),
+        (lambda d: d.update(goal={"position": {"polygon": LINE}}), "goal.position.polygon"),
     ],
 )
 def test_reader_names_the_bad_field(edit: Any, field: str) -> None:

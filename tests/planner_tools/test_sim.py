@@ -12,6 +12,7 @@ import pytest
 import planner_tools.sim as sim
 from planner.collision import prediction_at
 from planner.errors import InvalidInputError, PlannerError
+from planner.goal import Goal as RequestGoal
 from planner.problem import (
     CircleObstacle,
     DynamicObstacle,
@@ -199,6 +200,11 @@ def test_problem_at_uses_the_vehicle_and_shifted_predictions() -> None:
     moved = asked.obstacles[0]
     assert isinstance(moved, DynamicObstacle)
     np.testing.assert_allclose(moved.prediction[0], [0.0, 5.0, 0.0, 0.1])
+    # a request's goal window is in seconds from now: from the cycle's time on
+    timed = replace(problem, goal=RequestGoal(time=(4.0, 6.0), speed=(0.0, 1.0)))
+    goal = problem_at(timed, state).goal
+    assert goal is not None and goal.time == (3.0, 5.0) and goal.speed == (0.0, 1.0)
+    assert problem_at(problem, state).goal is None
 
 
 def test_goal_criteria() -> None:

@@ -16,7 +16,10 @@ What is checked is properties, not numbers:
   curvature agreeing with the heading's change and the reported ``s, d`` with TransF-κ of the positions;
 * ``fallback``: a reason, a braking profile (speed never increasing once a positive acceleration at the
   start is released, deceleration within the limit)
-  and steps consistent with ``v·dt``.
+  and steps consistent with ``v·dt``;
+* a request with a goal (:func:`goal_problems`): ``diagnostics.goal`` present (absent without a goal),
+  ``reached`` at ``t`` exactly when the trajectory first meets the goal at ``t`` (the centre inside the
+  region by shapely's ``covers``, ``t`` in the window, the speed in the range within 1e-3 m/s).
 
 Units: metres, seconds, radians.
 """
@@ -267,6 +270,57 @@ def plan_problems(request_json: dict[str, Any], answer: Any, statuses: Sequence[
         out += full_problems(problem, traj)
     else:
         out += fallback_problems(problem, traj)
+    return out
+
+
+#: a sample this close to the goal region's edge [m] may be judged either way
+GOAL_EDGE_TOL = 1e-6
+#: the speed range holds within this [m/s] (planner.goal.SPEED_TOLERANCE)
+GOAL_SPEED_TOL = 1e-3
+
+
+def goal_met(goal: dict[str, Any], traj: Trajectory, slack: float) -> np.ndarray:
+    """Per sample, whether the trajectory meets the request's ``goal`` (its JSON), the region grown by
+    ``slack`` [m] (shrunk where negative)."""
+    ok = np.ones(traj.t.shape, dtype=bool)
+    position = goal.get("position")
+    if position is not None:
+        if "circle" in position:
+            region = shapely.Point(position["circle"]["center"]).buffer(position["circle"]["radius"], 256)
+        else:
+            region = shapely.make_valid(shapely.Polygon(position["polygon"]))
+        region = region.buffer(slack) if slack else region
+        ok &= np.array([region.covers(shapely.Point(x, y)) for x, y in zip(traj.x, traj.y, strict=True)])
+    if goal.get("time") is not None:
+        ok &= (traj.t >= goal["time"][0] - TIME_TOL) & (traj.t <= goal["time"][1] + TIME_TOL)
+    if goal.get("speed") is not None:
+        ok &= (traj.v >= goal["speed"][0] - GOAL_SPEED_TOL) & (traj.v <= goal["speed"][1] + GOAL_SPEED_TOL)
+    return ok
+
+
+def goal_problems(request_json: dict[str, Any], answer: dict[str, Any], statuses: Sequence[str]) -> list[str]:
+    """What is wrong with a well-shaped answer's ``diagnostics.goal`` to ``request_json``; ``statuses``
+    are the acceptable goal statuses ([] if nothing). A disc is tested as a 1024-gon inside it, so the
+    claims are checked ``GOAL_EDGE_TOL`` inside and outside the region, and 2 mm more for a disc."""
+    goal, report = request_json.get("goal"), answer["diagnostics"].get("goal")
+    if goal is None:
+        return [] if report is None else ["diagnostics.goal without a goal in the request"]
+    if report is None:
+        return ["no diagnostics.goal for a request with a goal"]
+    out = [] if report["status"] in statuses else [f"goal {report} , expected one of {list(statuses)}"]
+    traj = trajectory_of(answer)
+    edge = GOAL_EDGE_TOL + (2e-3 if "circle" in (goal.get("position") or {}) else 0.0)
+    loose, strict = goal_met(goal, traj, edge), goal_met(goal, traj, -edge)
+    if report["status"] == "reached":
+        at = np.flatnonzero(np.abs(traj.t - report["t"]) <= TIME_TOL)
+        if at.size == 0 or not loose[at[0]]:
+            out.append(f"goal reached at t = {report['t']}, where the trajectory does not meet it")
+        elif strict[: at[0]].any():
+            out.append(
+                f"goal reached at t = {report['t']}, but met already at t = {traj.t[np.argmax(strict)]}"
+            )
+    elif strict.any():
+        out.append(f"goal {report['status']}, but the trajectory meets it at t = {traj.t[np.argmax(strict)]}")
     return out
 
 

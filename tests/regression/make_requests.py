@@ -35,6 +35,7 @@ if str(ROOT) not in sys.path:  # run as a script
     sys.path.insert(0, str(ROOT))
 
 from app.conversions import demo_request, from_problem  # noqa: E402
+from planner.goal import Goal, GoalCircle, GoalPolygon  # noqa: E402
 from planner.problem import (  # noqa: E402
     CircleObstacle,
     DynamicObstacle,
@@ -206,6 +207,42 @@ def pedestrian() -> Json:
     )
 
 
+def goal_past_parked_car() -> Json:
+    """A car parked 1.2 m into the lane in a 40 m left curve, and a goal beyond it: stop in a 3 m disc."""
+    road = Road([straight_piece(20.0), arc_piece(40.0, np.radians(90.0)), straight_piece(60.0)])
+    parked = PolygonObstacle("parked", box_on_road(road, 40.0, -1.4, 4.5, 1.8))
+    x0, y0, h0 = road.pose(10.0)
+    goal = Goal(GoalCircle(road.point(67.0, 0.0), 3.0), speed=(0.0, 0.5))
+    return _request(
+        PlanningProblem(
+            reference_line=road.polyline(1.0),
+            lane=Lane(left_width=3.5, right_width=3.5),
+            ego=Ego(x=x0, y=y0, heading=h0, speed=8.0),
+            obstacles=(parked,),
+            vehicle=Vehicle(),
+            options=Options(horizon_time=10.0, dt=0.1, target_speed=8.0),
+            goal=goal,
+        )
+    )
+
+
+def goal_window() -> Json:
+    """A goal region 95–115 m ahead between 6 and 8 s from now: late at the target (10 m/s), in time up
+    to the speed limit (16 m/s)."""
+    road = Road([straight_piece(300.0)])
+    region = GoalPolygon(np.array([[105.0, -1.75], [125.0, -1.75], [125.0, 1.75], [105.0, 1.75]]))
+    return _request(
+        PlanningProblem(
+            reference_line=road.polyline(5.0),
+            lane=Lane(left_width=3.5, right_width=3.5),
+            ego=Ego(x=10.0, y=0.0, heading=0.0, speed=10.0),
+            vehicle=Vehicle(),
+            options=Options(horizon_time=8.0, dt=0.1, target_speed=10.0, speed_limit=16.0),
+            goal=Goal(region, time=(6.0, 8.0)),
+        )
+    )
+
+
 HIGHWAY = Road(
     [
         straight_piece(300.0),
@@ -259,8 +296,10 @@ class _CopiedFile:
 # --------------------------------------------------------------------------------------------------
 
 
-def _expect(statuses: list[str], about: str) -> Json:
-    return {"statuses": statuses, "about": about}
+def _expect(statuses: list[str], about: str, goal: list[str] | None = None) -> Json:
+    """The sidecar: acceptable statuses, what the request is about and, for a request with a goal, the
+    acceptable ``diagnostics.goal.status``."""
+    return {"statuses": statuses, "about": about, **({} if goal is None else {"goal": goal})}
 
 
 #: name → (request builder, expectation)
@@ -274,6 +313,16 @@ GOLDEN: dict[str, tuple[Callable[[], Json], Json]] = {
     "blocked_road": (blocked_road, _expect([STOPPED], "a wall across the lane 35 m ahead")),
     "slow_leader": (slow_leader, _expect([OK], "a 3 m/s leader in a lane too narrow to pass")),
     "pedestrian": (pedestrian, _expect([OK, STOPPED], "a pedestrian crossing 25 m ahead")),
+    "goal_past_parked_car": (
+        goal_past_parked_car,
+        _expect([OK], "stop in a goal past a car parked in a curve", goal=["reached"]),
+    ),
+    "goal_window": (
+        goal_window,
+        _expect(
+            [OK], "in a goal region between 6 and 8 s: above the target, within the limit", goal=["reached"]
+        ),
+    ),
     "highway_420": (highway(420.0), _expect([OK], "coarse 2.3 km highway polyline, in a 1 km curve")),
     "highway_1300": (highway(1300.0), _expect([OK], "coarse 2.3 km highway polyline, in an 800 m curve")),
     **{

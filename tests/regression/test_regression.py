@@ -15,7 +15,7 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.regression.checks import STATUSES, error_problems, plan_problems
+from tests.regression.checks import STATUSES, error_problems, goal_problems, plan_problems
 from tests.regression.make_requests import REQUESTS, build_all, stale
 
 
@@ -49,6 +49,8 @@ def test_golden_request(service: httpx.Client, name: str) -> None:
     request, expect = _load(name)
     answer = _post_plan(service, request)
     problems = plan_problems(request, answer, expect["statuses"])
+    if not problems and ("goal" in request or "goal" in expect):
+        problems = goal_problems(request, answer, expect.get("goal", []))
     status = answer.get("status") if isinstance(answer, dict) else None
     message = answer.get("message") if isinstance(answer, dict) else None
     assert problems == [], f"{name}: status {status!r} ({message}):\n  " + "\n  ".join(problems)
@@ -179,3 +181,24 @@ def test_the_checks_catch_each_breakage(demo_answer: tuple[dict[str, Any], dict[
         if not any(expected in p for p in problems):
             missed.append(f"{name}: expected {expected!r} in {problems}")
     assert missed == [], "\n".join(missed)
+
+
+def test_the_goal_checks_catch_a_wrong_claim(service: httpx.Client) -> None:
+    request, expect = _load("goal_window")
+    answer = _post_plan(service, request)
+    assert goal_problems(request, answer, expect["goal"]) == []
+    report = answer["diagnostics"]["goal"]
+    assert report["status"] == "reached"
+
+    def claims(**change: Any) -> list[str]:
+        wrong = json.loads(json.dumps(answer))
+        wrong["diagnostics"]["goal"] = {k: v for k, v in {**report, **change}.items() if v is not None}
+        return goal_problems(request, wrong, ["reached", "on_the_way", "unreachable"])
+
+    assert any("already" in p for p in claims(t=report["t"] + 0.2))  # met before the t claimed
+    assert any("does not meet it" in p for p in claims(t=report["t"] - 0.1))  # not met then
+    assert any("meets it" in p for p in claims(status="on_the_way", t=None))  # met, but not said
+    assert any("expected one of" in p for p in goal_problems(request, answer, ["unreachable"]))
+    assert any("no diagnostics.goal" in p for p in goal_problems(request, {"diagnostics": {}}, ["reached"]))
+    plain = {k: v for k, v in request.items() if k != "goal"}
+    assert goal_problems(plain, answer, []) == ["diagnostics.goal without a goal in the request"]

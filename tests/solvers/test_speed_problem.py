@@ -50,6 +50,10 @@ from tests.solvers.speed_cases import make_problem
         ({"s_lower": np.full(81, math.inf)}, "s_lower"),
         ({"s_lower": np.full(81, math.nan)}, "s_lower"),
         ({"s_lower": [[0.0] * 81]}, "s_lower"),
+        ({"goal_lower": np.full(81, math.inf)}, "goal_lower"),
+        ({"goal_upper": np.full(81, -math.inf)}, "goal_upper"),
+        ({"goal_upper": np.full(80, 1.0)}, "goal_upper"),
+        ({"goal_lower": np.full(81, 5.0), "goal_upper": np.full(81, 4.0)}, "goal_lower: above goal_upper"),
         ({"weights": {"speed": 1.0}}, "weights"),
     ],
 )
@@ -67,6 +71,8 @@ def test_misuse_raises_value_error(change: dict[str, Any], match: str) -> None:
         {"speed_violation": 0.0},
         {"jerk": True},
         {"follower_violation": 0.0},
+        {"goal_late_violation": -1.0},
+        {"goal_early_violation": 0.0},
     ],
 )
 def test_bad_weights_raise(kwargs: dict[str, Any]) -> None:
@@ -104,3 +110,15 @@ def test_tables_are_computed_once_and_read_only() -> None:
     np.testing.assert_array_equal(tables.s_bound, problem.s_bound())
     assert not tables.slopes.flags.writeable and not tables.piece_e.flags.writeable
     assert make_problem(s_lower=np.concatenate(([0.0], np.full(80, -1.0)))).tables.has_lower
+
+
+def test_a_goal_is_in_the_tables_only_where_it_bounds() -> None:
+    free = make_problem(goal_lower=np.full(81, -math.inf), goal_upper=np.full(81, math.inf))
+    assert not free.tables.has_goal
+    at_start = np.concatenate(([7.0], np.full(80, -math.inf)))  # entry 0 is not imposed
+    assert not make_problem(goal_lower=at_start).tables.has_goal
+    upper = np.full(81, math.inf)
+    upper[60] = 70.0
+    tables = make_problem(goal_upper=upper).tables
+    assert tables.has_goal and tables.goal_hi[60] == 70.0 and np.all(np.isneginf(tables.goal_lo))
+    assert not tables.goal_hi.flags.writeable

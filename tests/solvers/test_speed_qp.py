@@ -29,7 +29,10 @@ _LIMIT = {"limit_s": [0, 30, 40, 60, 70, 1000], "limit_v": [20, 20, 8, 8, 20, 20
 
 
 def _qp(problem: SpeedProblem, settings: HpipmSettings | None = None) -> SpeedQP:
-    qp = build_speed_qp(problem.steps, problem.dt, problem.weights, problem.tables.has_lower, settings)
+    tables = problem.tables
+    qp = build_speed_qp(
+        problem.steps, problem.dt, problem.weights, tables.has_lower, settings, goal=tables.has_goal
+    )
     qp.set_bounds(problem)
     qp.p[P_V_TARGET] = problem.v_target
     return qp
@@ -40,13 +43,19 @@ def _guess(problem: SpeedProblem) -> np.ndarray:
     return np.minimum(problem.v0 * problem.t, problem.s_stop - problem.s0)
 
 
-@pytest.mark.parametrize("lower", [False, True])
-def test_qps_on_bound_arrays_agree_with_casadis_ordinary_call(lower: bool) -> None:
+@pytest.mark.parametrize(("lower", "goal"), [(False, False), (True, False), (False, True), (True, True)])
+def test_qps_on_bound_arrays_agree_with_casadis_ordinary_call(lower: bool, goal: bool) -> None:
     """One QP after another through the buffer, as the SQP does, against CasADi's call with the same
     numbers (a buffer evaluated again can carry state over: CasADi 3.8.0 summed the solutions); with a
-    lower bound, the QP with its slack."""
+    lower bound or a goal's bounds, the QP with their slacks."""
     s_lower = -10.0 + 14.0 * np.arange(81) * 0.1 if lower else None
-    problem = make_problem(v0=15.0, s_stop=120.0, s_lower=s_lower, **_LIMIT)
+    goal_lower = goal_upper = None
+    if goal:
+        goal_lower, goal_upper = np.full(81, -np.inf), np.full(81, np.inf)
+        goal_lower[60], goal_upper[30] = 100.0, 40.0
+    problem = make_problem(
+        v0=15.0, s_stop=120.0, s_lower=s_lower, goal_lower=goal_lower, goal_upper=goal_upper, **_LIMIT
+    )
     qp = _qp(problem)
     s_bar, v_end = _guess(problem), problem.v0
     for shift, curvature in ((0.0, 0.0), (5.0, 0.3), (0.0, 0.0)):
@@ -55,7 +64,7 @@ def test_qps_on_bound_arrays_agree_with_casadis_ordinary_call(lower: bool) -> No
         qp.slopes[...] = d
         qp.p[P_END_CURVATURE], qp.p[P_V_HAT] = curvature, v_end
         flag, iterations = qp.solve()
-        assert qp.x.size == (7 if lower else 6) * problem.steps + 3
+        assert qp.x.size == (6 + lower + 2 * goal) * problem.steps + 3
         inputs = {name: getattr(qp, name).copy() for name in ("p", "lbx", "ubx", "lbg", "ubg")}
         reference = qp.function(**inputs)
         stats = qp.function.stats()
@@ -65,8 +74,8 @@ def test_qps_on_bound_arrays_agree_with_casadis_ordinary_call(lower: bool) -> No
         assert np.array_equal(qp.lam_g, reference["lam_g"].full().ravel())
 
 
-def test_named_columns_and_rows_are_what_they_say() -> None:
-    problem = make_problem(v0=15.0, s_stop=60.0, **_LIMIT)
+def _solved_at_guess(problem: SpeedProblem) -> SpeedQP:
+    """The problem's QP solved once, linearised at :func:`_guess` (it must succeed)."""
     qp = _qp(problem)
     e, d, _, _ = local_model(problem, _guess(problem), problem.v0)
     qp.limit_rows[...] = e
@@ -74,6 +83,12 @@ def test_named_columns_and_rows_are_what_they_say() -> None:
     qp.p[P_V_HAT] = problem.v0
     flag, _ = qp.solve()
     assert flag == HpipmStatus.SUCCESS
+    return qp
+
+
+def test_named_columns_and_rows_are_what_they_say() -> None:
+    problem = make_problem(v0=15.0, s_stop=60.0, **_LIMIT)
+    qp = _solved_at_guess(problem)
     n, dt = problem.steps, problem.dt
     stages = np.vstack([qp.x[: qp.width * n].reshape(n, qp.width), np.append(qp.x[-3:], [0.0] * 3)])
     s, v, a, j = (stages[:, col] for col in (COL_S, COL_V, COL_A, COL_JERK))
@@ -87,6 +102,30 @@ def test_named_columns_and_rows_are_what_they_say() -> None:
     np.testing.assert_array_equal(qp.jerk, j[:-1])
     end = qp.rows * (n - 1) + ROW_LIMIT
     np.testing.assert_array_equal(qp.end_multipliers, qp.lam_g[end : end + PIECES])
+
+
+@pytest.mark.parametrize("aim", ["early", "late"])
+def test_the_goal_slack_columns_measure_what_the_goal_rows_miss(aim: str) -> None:
+    # on a free road: not past 27 m at 3 s (knot 30), which can be kept; or at least 150 m at 8 s, which
+    # cannot (a_max = 2, jerk 2)
+    upper, lower = np.full(81, np.inf), np.full(81, -np.inf)
+    if aim == "early":
+        upper[30] = 27.0
+    else:
+        lower[80] = 150.0
+    problem = make_problem(v0=10.0, v_target=10.0, goal_upper=upper, goal_lower=lower)
+    qp = _solved_at_guess(problem)
+    assert qp.col_goal == qp.width - 2 and qp.row_goal == qp.rows - 2
+    n = problem.steps
+    stages = qp.x[: qp.width * n].reshape(n, qp.width)  # stage k holds the slacks of knot k + 1
+    s = np.append(stages[:, COL_S], qp.x[-3])
+    late, early = stages[:, qp.col_goal], stages[:, qp.col_goal + 1]
+    assert np.all(late >= -1e-9) and np.all(early >= -1e-9)
+    if aim == "early":
+        assert s[30] <= 27.0 + 1e-3 and np.max(early) < 1e-3 and np.max(late) < 1e-6  # kept
+    else:
+        assert s[80] < 150.0 - 10.0 and late[79] == pytest.approx(150.0 - s[80], abs=1e-4)  # missed
+        assert np.max(early) < 1e-6
 
 
 def test_an_iteration_cap_is_hpipms_max_iter_flag() -> None:

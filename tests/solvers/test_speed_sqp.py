@@ -587,3 +587,80 @@ def test_looser_qp_residuals_and_restore_threshold_keep_a_valid_profile() -> Non
         SpeedSolver(qp_residual=0.0)
     with pytest.raises(ValueError, match="restore_violation"):
         SpeedSolver(restore_violation=-1.0)
+
+
+def _at(k: int, value: float, free: float) -> np.ndarray:
+    """A bound on knot ``k`` only (``free`` elsewhere)."""
+    bound = np.full(81, free)
+    bound[k] = value
+    return bound
+
+
+def test_a_goal_ahead_by_a_time_is_met_above_the_target_within_the_limit() -> None:
+    # cruising at the target (10 m/s) is at 60 m at 6 s; the goal wants 85 m by then, the limit is 20
+    # (at most about 90 m: a_max = 2, jerk 2)
+    plain = make_problem(v0=10.0, v_target=10.0, limit_v=[20.0, 20.0])
+    assert SOLVER.solve(plain).s[60] < 85.0 - 20.0
+    problem = replace(plain, goal_lower=_at(60, 85.0, -math.inf))
+    result = SOLVER.solve(problem)
+    assert_valid(problem, result)
+    assert result.info.usable and result.goal_violation < 0.05
+    assert result.s[60] >= 85.0 - 0.05
+    assert result.speed_violation <= 1e-6 and np.max(result.v) <= 20.0 + 1e-6
+    assert result.max_violation == max(result.speed_violation, result.position_violation)  # not the goal's
+    assert result.info.objective == pytest.approx(
+        objective(problem, result.s, result.v, result.a, result.jerk)
+    )
+
+
+def test_a_goal_not_to_be_early_slows_down() -> None:
+    # at 10 m/s the vehicle would be at 60 m by 6 s; the goal wants it no farther than 35 m then
+    problem = make_problem(v0=10.0, v_target=10.0, goal_upper=_at(60, 35.0, math.inf))
+    result = SOLVER.solve(problem)
+    assert_valid(problem, result)
+    assert result.info.usable and result.s[60] <= 35.0 + 0.05 and result.goal_violation < 0.05
+
+
+def test_a_goal_out_of_reach_is_missed_and_reported_not_forced() -> None:
+    # 200 m in 4 s from 10 m/s with a_max = 2 and a limit of 20 m/s cannot be done
+    problem = make_problem(v0=10.0, v_target=10.0, limit_v=[20.0, 20.0], goal_lower=_at(40, 200.0, -math.inf))
+    result = SOLVER.solve(problem)
+    assert_valid(problem, result)
+    assert result.info.usable
+    assert result.speed_violation <= 1e-3  # the limit wins
+    assert (
+        result.goal_violation == pytest.approx(200.0 - result.s[40], abs=1e-6) and result.goal_violation > 100
+    )
+    assert "goal" in result.info.message
+
+
+@pytest.mark.parametrize("other", ["s_stop", "s_upper", "s_lower"])
+def test_every_other_bound_wins_over_a_goal(other: str) -> None:
+    goal = {"goal_lower": _at(60, 95.0, -math.inf)}  # ahead, by 6 s
+    if other == "s_lower":  # a follower against a goal not to be early: the follower wins
+        goal = {"goal_upper": _at(60, 30.0, math.inf)}
+    bound = {
+        "s_stop": {"s_stop": 50.0},
+        "s_upper": {"s_upper": 20.0 + 5.0 * _T},  # a leader at 5 m/s, 20 m ahead
+        "s_lower": {"s_lower": _FOLLOWER},
+    }[other]
+    problem = make_problem(v0=10.0, v_target=10.0, limit_v=[20.0, 20.0], **bound, **goal)
+    result = SOLVER.solve(problem)
+    assert_valid(problem, result)
+    assert result.info.usable
+    assert result.position_violation <= 1e-3 and result.follower_violation <= 1e-3
+    assert result.goal_violation > 5.0
+
+
+def test_an_unused_goal_changes_nothing() -> None:
+    solver = SpeedSolver()
+    plain = make_problem(v0=15.0, limit_s=[0, 30, 40, 60, 70, 1000], limit_v=[20, 20, 8, 8, 20, 20])
+    reference = solver.solve(plain)
+    free = replace(plain, goal_lower=np.full(81, -math.inf), goal_upper=np.full(81, math.inf))
+    result = solver.solve(free)
+    assert np.array_equal(result.jerk, reference.jerk) and result.goal_violation == 0.0
+    assert solver.build_count == 1
+    loose = replace(plain, goal_lower=_at(80, -100.0, -math.inf))  # finite but never binding
+    result = solver.solve(loose)
+    assert solver.build_count == 2
+    assert np.max(np.abs(result.s - reference.s)) < 1e-3 and result.goal_violation == 0.0  # QP tolerance

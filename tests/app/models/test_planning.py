@@ -106,3 +106,55 @@ def test_a_step_longer_than_the_horizon_is_refused(client: TestClient, demo: dic
     expect(post(client, demo), 422, "invalid_request", "options.dt")
     demo["options"].update(horizon_time=1.0, dt=1.0)
     assert post(client, demo).status_code == 200
+
+
+#: a goal with every key, beside the demo road
+GOAL = {
+    "position": {"circle": {"center": [30.0, 0.0], "radius": 3.0}},
+    "time": [2.0, 8.0],
+    "speed": [0.0, 3.0],
+}
+DISC = {"center": [0, 0], "radius": 0}
+LINE = [[0, 0], [1, 1], [2, 2]]
+
+
+@pytest.mark.parametrize(
+    ("edit", "field"),
+    [
+        (lambda d: d["options"].update(target_speed=8.0, speed_limit=7.0), "options.speed_limit"),
+        (lambda d: d["options"].update(speed_limit=-1.0), "options.speed_limit"),
+        (lambda d: d.update(road={"left_width": 1.0, "right_width": 20.0}), "road.left_width"),
+        (lambda d: d.update(road={"left_width": [20.0, 20.0], "right_width": 20.0}), "road.left_width"),
+        (lambda d: d.update(road={"left_width": 20.0}), "road.right_width"),
+        (lambda d: d.update(goal={**GOAL, "time": [8.0, 2.0]}), "goal.time"),
+        (lambda d: d.update(goal={**GOAL, "speed": [-1.0, 2.0]}), "goal.speed.0"),
+        (lambda d: d.update(goal={**GOAL, "speed": [1.0]}), "goal.speed.1"),
+        (lambda d: d.update(goal={"position": {"circle": DISC}}), "goal.position.circle.radius"),
+        (lambda d: d.update(goal={"position": {"polygon": LINE}}), "goal.position.polygon"),
+        (lambda d: d.update(goal={"position": {}}), "goal.position"),
+        (lambda d: d.update(goal={"where": [0, 0]}), "goal.where"),
+    ],
+)  # fmt: skip
+def test_speed_limit_road_and_goal_are_checked(
+    client: TestClient, demo: dict[str, Any], edit: Any, field: str
+) -> None:
+    edit(demo)
+    expect(post(client, demo), 422, "invalid_request", field)
+
+
+def test_a_road_narrower_than_the_lane_at_one_point_is_named_by_its_index(
+    client: TestClient, demo: dict[str, Any]
+) -> None:
+    n = len(demo["reference_line"])
+    left = [20.0] * n
+    left[3] = 0.5  # the demo's lane is wider there
+    demo["road"] = {"left_width": left, "right_width": 20.0}
+    expect(post(client, demo), 422, "invalid_request", "road.left_width.3")
+
+
+def test_speed_limit_road_and_goal_are_accepted(client: TestClient, demo: dict[str, Any]) -> None:
+    demo["options"].update(target_speed=5.0, speed_limit=8.0)
+    demo["road"] = {"left_width": 20.0, "right_width": 12.0}
+    demo["goal"] = GOAL
+    response = post(client, demo)
+    assert response.status_code == 200, response.text

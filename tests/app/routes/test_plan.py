@@ -326,3 +326,40 @@ def test_a_plan_that_cannot_start_within_its_budget_is_a_503_to_retry(demo: dict
     assert r.status_code == 503 and r.headers["Retry-After"] == "1"
     assert r.json()["error"]["code"] == "deadline_exceeded"
     assert "total;dur=" in r.headers["Server-Timing"]
+
+
+#: the straight road of BLOCKED without its wall
+OPEN: dict[str, Any] = {**BLOCKED, "obstacles": [], "options": {"target_speed": 8.0}}
+
+
+def test_the_answer_says_what_the_trajectory_does_with_the_goal(client: TestClient) -> None:
+    assert "goal" not in _plan(client, OPEN)["diagnostics"]  # no goal, no key
+    stop = {"position": {"polygon": [[45, -2], [55, -2], [55, 2], [45, 2]]}, "speed": [0, 0.2]}
+    out = _plan(client, {**OPEN, "goal": stop})
+    goal = out["diagnostics"]["goal"]
+    assert set(goal) == {"status", "t", "message"} and goal["status"] == "reached"
+    first = next(p for p in out["trajectory"] if 45 <= p["x"] <= 55 and abs(p["y"]) <= 2 and p["v"] <= 0.2)
+    assert goal["t"] == pytest.approx(first["t"])
+    assert out["trajectory"][-1]["v"] < 0.2 and 45 <= out["trajectory"][-1]["x"] <= 55  # standing inside
+    behind = {"position": {"circle": {"center": [-20, 0], "radius": 2}}}
+    goal = _plan(client, {**OPEN, "goal": behind})["diagnostics"]["goal"]
+    assert set(goal) == {"status", "reason", "message"}
+    assert (goal["status"], goal["reason"]) == ("unreachable", "behind")
+    later = _plan(client, {**OPEN, "goal": {"time": [30, 40]}})["diagnostics"]["goal"]
+    assert set(later) == {"status", "message"} and later["status"] == "on_the_way"
+
+
+def test_a_goal_answer_matches_the_openapi_schema(client: TestClient) -> None:
+    spec = app.openapi()
+    components = spec["components"]["schemas"]
+    schema = spec["paths"]["/v1/plan"]["post"]["responses"]["200"]["content"]["application/json"]["schema"]
+    goal = components["GoalDiagnostics"]
+    assert goal["properties"]["status"]["$ref"].endswith("/GoalStatus")
+    assert components["GoalStatus"]["enum"] == ["reached", "on_the_way", "unreachable"]
+    assert "window_ended" in components["GoalReason"]["enum"]
+    assert set(goal["required"]) == {"status", "message"}
+    far = {"position": {"circle": {"center": [500, 0], "radius": 1}}}
+    for body in ({"time": [0, 2], "speed": [7, 9]}, far):
+        _check(_plan(client, {**OPEN, "goal": body}), schema, components, "answer")
+    examples = spec["paths"]["/v1/plan"]["post"]["requestBody"]["content"]["application/json"]["examples"]
+    assert any("goal" in example["value"] for example in examples.values())

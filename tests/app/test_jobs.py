@@ -1,0 +1,27 @@
+"""What a plan process does before its first request: the warm-up builds the speed problems a plan with
+and without a goal needs."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+from app.conversions import demo_goal, demo_request
+from app.jobs import Job, plan_job, warm_up
+from planner.thread_solvers import thread_solvers
+
+
+def test_the_warm_up_builds_the_speed_problems_with_and_without_a_goal() -> None:
+    built: list[int] = []
+
+    def process() -> None:  # the solvers are kept per thread: a thread of its own is a fresh process here
+        warm_up()
+        built.append(thread_solvers().speed.build_count)
+        goal = demo_request().model_copy(update={"goal": demo_goal()}).model_dump_json().encode()
+        plan_job(Job("plan", goal, time.monotonic(), 60_000.0))
+        built.append(thread_solvers().speed.build_count)
+
+    thread = threading.Thread(target=process)
+    thread.start()
+    thread.join()
+    assert built == [2, 2]  # the goal's QP built by the warm-up, not by the first goal request
