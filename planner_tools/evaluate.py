@@ -98,7 +98,7 @@ def is_scene(path: Path) -> bool:
 
 def find_scenes(inputs: Iterable[str | Path]) -> list[Path]:
     """The scene files of ``inputs`` (files, or folders whose scene files are taken, sorted), in order,
-    each once.
+    each once; ``index.json`` (the requests' index beside them) is not a scene and is passed over.
 
     Raises:
         CommonRoadError: for an input that does not exist or a file that is not a scene.
@@ -108,6 +108,8 @@ def find_scenes(inputs: Iterable[str | Path]) -> list[Path]:
         if item.is_dir():
             found = sorted(p for p in item.iterdir() if p.is_file() and is_scene(p))
         elif item.is_file():
+            if item.name.lower() == "index.json":  # the requests' index, as a shell's *.json passes it
+                continue
             if not is_scene(item):
                 raise CommonRoadError(f"{item}: not a scene (CommonRoad XML, .xml.gz or a request JSON)")
             found = [item]

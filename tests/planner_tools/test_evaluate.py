@@ -29,6 +29,7 @@ def test_scenes_are_found_in_files_and_folders(tmp_path: Path) -> None:
     assert {"ZAM_Over-1_1.json", "ZAM_Over-1_1.xml.gz", "C-DEU_B471-1_3_T-1.xml"} <= names
     assert len(found) == 19 + 19
     assert ev.find_scenes([DATA / "ZAM_Over-1_1.json", DATA]).count(DATA / "ZAM_Over-1_1.json") == 1
+    assert ev.find_scenes(sorted(DATA.glob("*.json"))) == sorted(p for p in found if p.suffix == ".json")
     with pytest.raises(CommonRoadError, match="no such file"):
         ev.find_scenes([tmp_path / "missing.xml"])
     with pytest.raises(CommonRoadError, match="not a scene"):
