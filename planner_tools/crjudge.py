@@ -21,8 +21,10 @@
 * the judgement of a driven motion (:meth:`~CommonRoadScene.judge`), on its states at the scenario's time
   steps (``driven_states``: the footprint's centre, the body's yaw, the speed, the steering angle):
   - **goal** — commonroad-io's ``GoalRegion.is_reached`` on each state (position, orientation, velocity,
-    time step, as ``PlanningProblem.goal_reached`` does); a goal given by time only is reached at the
-    first state inside its window, i.e. by surviving until then.
+    time step, as ``PlanningProblem.goal_reached`` does), reached at the first state it accepts; a goal
+    given by time only (a survival scenario) is reached by surviving its whole window: at the window's
+    last time step (``is_reached`` accepts every state inside the window, the initial state too when the
+    window starts at 0, which would make surviving nothing a success).
   - **collisions** — commonroad-drivability-checker's collision checker (``pycrcc``): every obstacle of
     the scenario as a collision object (a dynamic one time-variant over its recorded occupancies, a static
     one as its shape), the ego's driven footprints (``length × width`` boxes at each time step) as a
@@ -253,6 +255,23 @@ class CommonRoadScene:
     def has_goal(self) -> bool:
         return bool(self.problem.goal.state_list)
 
+    @property
+    def time_only(self) -> bool:
+        """Whether the goal is a time window only (CommonRoad's survival scenarios)."""
+        states = self.problem.goal.state_list
+        return bool(states) and all(set(st.used_attributes) <= {"time_step"} for st in states)
+
+    def _reached(self, state: Any) -> bool:
+        """``GoalRegion.is_reached`` on a state with a time step; a goal by time only is reached at its
+        window's last time step, by surviving the whole window."""
+        goal = self.problem.goal
+        if not goal.state_list or not goal.is_reached(state):
+            return False
+        if self.time_only:
+            window = self._intervals(st.time_step for st in goal.state_list)
+            return int(state.time_step) >= max(b for _, b in window)
+        return True
+
     def goal_window(self) -> tuple[float, float] | None:
         """The hull of the goal states' time windows [s from the start], or None without a goal."""
         spans = self._intervals(st.time_step for st in self.problem.goal.state_list)
@@ -397,11 +416,9 @@ class CommonRoadScene:
         :class:`planner_tools.sim.Goal`'s ``check``."""
         from commonroad.scenario.state import KSState
 
-        goal = self.problem.goal
-
         def check(state: Any) -> bool:
             step = self._step_of(state.t)
-            if step is None or not goal.state_list:
+            if step is None or not self.has_goal:
                 return False
             ks = KSState(
                 time_step=step,
@@ -410,7 +427,7 @@ class CommonRoadScene:
                 velocity=float(state.speed),
                 orientation=float(state.yaw),
             )
-            return bool(goal.is_reached(ks))
+            return self._reached(ks)
 
         return check
 
@@ -420,10 +437,7 @@ class CommonRoadScene:
         from commonroad_dc import pycrcc
 
         states = driven_states(motion, self.dt, self.t0)
-        goal = self.problem.goal
-        reached = None
-        if goal.state_list:
-            reached = next((k for k, st in enumerate(states) if goal.is_reached(st)), None)
+        reached = next((k for k, st in enumerate(states) if self._reached(st)), None)
 
         boxes = _ego_boxes(states, length, width)
         ego = pycrcc.TimeVariantCollisionObject(self.t0)
@@ -446,7 +460,7 @@ class CommonRoadScene:
         off_steps = np.flatnonzero(off)
         feasible = tuple(feasible_transitions(states, self.dt)) if feasibility else ()
         return Verdict(
-            has_goal=bool(goal.state_list),
+            has_goal=self.has_goal,
             goal_reached=reached is not None,
             goal_time=None if reached is None else reached * self.dt,
             collided=tuple(ob.id for _, ob in hits),

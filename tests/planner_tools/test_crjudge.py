@@ -159,6 +159,17 @@ def test_a_goal_by_time_only_is_reached_by_surviving_until_it() -> None:
     long = scene.judge(_motion(3.3, x, y, float(ego.orientation)), 4.508, 1.61, feasibility=False)
     assert not short.goal_reached and long.goal_reached and long.goal_time == pytest.approx(3.3)
     assert long.states == 34 and long.off_road_steps == 0
+    # a window from 0 to 6 s (dt 0.2 s): the initial state is inside it, but only surviving it all counts
+    a9 = _scene("DEU_A9-3_1_T-1")
+    ego = a9.problem.initial_state
+    x, y, yaw = float(ego.position[0]), float(ego.position[1]), float(ego.orientation)
+    check = a9.goal_check()
+    assert not check(SimpleNamespace(t=0.0, x=x, y=y, yaw=yaw, speed=28.0, steering=0.0))
+    assert check(SimpleNamespace(t=6.0, x=x, y=y, yaw=yaw, speed=28.0, steering=0.0))
+    move = (lambda t: x + 28.0 * t, y, yaw, 28.0)
+    assert not a9.judge(_motion(5.8, *move), 4.508, 1.61, feasibility=False).goal_reached
+    survived = a9.judge(_motion(6.0, *move), 4.508, 1.61, feasibility=False)
+    assert survived.goal_reached and survived.goal_time == pytest.approx(6.0) and survived.states == 31
 
 
 def test_a_car_from_behind_that_runs_into_a_standing_ego_is_a_rear_end_collision() -> None:
