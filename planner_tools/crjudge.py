@@ -431,6 +431,38 @@ class CommonRoadScene:
 
         return check
 
+    def _obstacles_to(self, last: int) -> list[_Obstacle]:
+        """The scenario's obstacles as collision objects over the time steps ``t0..last`` at least
+        (built once, again only for a longer span)."""
+        built = getattr(self, "_built", None)
+        if built is None or built[0] < last:
+            built = (last, _obstacles(self.scenario, self.t0, last))
+            self._built = built
+        return built[1]
+
+    def collision_check(self, duration: float, length: float, width: float) -> Callable[[Any], bool]:
+        """A check of a simulated vehicle state (:class:`planner_tools.sim.VehicleState`) by the
+        drivability checker: whether the ``length × width`` footprint [m] at its pose collides with an
+        obstacle at its time step (false between time steps); for the simulator's ``collision``, over
+        ``duration`` [s] from the start."""
+        from commonroad_dc import pycrcc
+
+        checker = pycrcc.CollisionChecker()
+        for ob in self._obstacles_to(self.t0 + math.ceil(duration / self.dt + 1e-9)):
+            checker.add_collision_object(ob.collision_object)
+
+        def check(state: Any) -> bool:
+            step = self._step_of(state.t)
+            if step is None:
+                return False
+            box = pycrcc.TimeVariantCollisionObject(step)
+            box.append_obstacle(
+                pycrcc.RectOBB(0.5 * length, 0.5 * width, float(state.yaw), float(state.x), float(state.y))
+            )
+            return bool(checker.collide(box))
+
+        return check
+
     def judge(self, motion: Any, length: float, width: float, *, feasibility: bool = True) -> Verdict:
         """Judge the driven ``motion`` (:class:`planner_tools.sim.Motion`) of a ``length × width``
         footprint [m] (see the module docstring)."""
@@ -445,7 +477,7 @@ class CommonRoadScene:
             ego.append_obstacle(box)
         last = self.t0 + len(states) - 1
         hits: list[tuple[int, _Obstacle]] = []
-        for ob in _obstacles(self.scenario, self.t0, last):
+        for ob in self._obstacles_to(last):
             if ob.collision_object.collide(ego):
                 first = self._first_contact(ob, boxes)
                 hits.append((0 if first is None else first, ob))

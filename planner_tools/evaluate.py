@@ -9,13 +9,16 @@ problem and a goal:
 * the request — converted from the XML by :mod:`planner_tools.commonroad`, or the JSON as it is; its vehicle
   (``vehicle``): ``car``, CommonRoad's vehicle type 2 (the scenario's vehicle, the default), ``point``,
   the same footprint as the point model, or ``request``, the request's own;
-* a CommonRoad scenario to judge against — the XML itself, or for a JSON ``X.json`` the file ``X.xml`` or
-  ``X.xml.gz`` beside it (:func:`commonroad_file`). With one (:class:`~planner_tools.crjudge.CommonRoadScene`)
-  the request carries the scenario's ``goal`` and ``options.speed_limit``; the run ends when commonroad-io
-  finds the goal reached, at a collision, or when the goal's time window has closed (at most
-  ``duration``); it is judged by CommonRoad's goal check, the drivability checker's collision checker and
-  feasibility check, and the road of the lanelets (see :mod:`planner_tools.crjudge`). A scenario without
-  a goal state is driven for ``duration`` (to the reference's end at most) and judged on surviving it.
+* a CommonRoad scenario to judge against — the XML itself, or for a JSON ``X.json`` the file ``X.xml``
+  or ``X.xml.gz`` beside it (:func:`commonroad_file`). With one
+  (:class:`~planner_tools.crjudge.CommonRoadScene`) the request carries the scenario's ``goal`` and
+  ``options.speed_limit``; the run ends when commonroad-io finds the goal reached, at a collision the
+  drivability checker finds (the simulator's own contacts with the request's obstacles are counted, not
+  ended on: a request's predictions may outlast the scenario's), or when the goal's time window has
+  closed (at most ``duration``); it is judged by CommonRoad's goal check, the drivability checker's
+  collision checker and feasibility check, and the road of the lanelets (see
+  :mod:`planner_tools.crjudge`). A scenario without a goal state is driven for ``duration`` (to the
+  reference's end at most) and judged on surviving it.
 * without one (a JSON with no XML beside it), as before: the goal is an arc length on the reference
   (``s_min`` from ``index.json`` beside the request; for a goal given by time only
   :func:`survival_goal_s`), collisions are the simulator's, feasibility the drivability checker's when
@@ -157,6 +160,7 @@ class Prepared:
     judge: Any | None = None
     speed_limit_source: str = ""
     goal_s: float | None = None
+    collision: Callable[[Any], bool] | None = field(default=None, repr=False)
 
 
 def survival_goal_s(conv: Conversion, duration: float) -> float:
@@ -249,7 +253,10 @@ def prepare(
             if window is not None:
                 duration = min(duration, _cycles_to(window[1], settings.replan_period))
     problem = problem_from_json(request)
-    return Prepared(name, conv, request, problem, goal, duration, judge, source, goal_s)
+    collision = None
+    if judge is not None:
+        collision = judge.collision_check(duration, problem.vehicle.length, problem.vehicle.width)
+    return Prepared(name, conv, request, problem, goal, duration, judge, source, goal_s, collision)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -505,6 +512,7 @@ def run_scene(
             replan_period=settings.replan_period,
             goal=prepared.goal,
             progress=progress,
+            collision=prepared.collision,
         )
         outcome = judge_run(prepared, result, settings, 0.0)
         gif = _gif(result) if settings.gif else None

@@ -8,8 +8,8 @@ installed but no shared file system.
 
 * **Where.** ``address`` (else ``RAY_ADDRESS``): a running Ray cluster (``ray start --head`` on one machine,
   ``ray start --address=HEAD:6379`` on the others; every node needs ``kappa-planner[commonroad,scale]``
-  installed, the same version). Without it a local Ray of ``workers`` processes (default: the CPUs this
-  process may use) is started and stopped.
+  installed, the same version). Without it a local Ray of ``workers`` processes (default: the CPUs Ray
+  finds, a container's CPU quota included) is started and stopped.
 * **Streaming.** At most as many tasks as there are workers (the cluster's CPUs) are in flight; rows come
   back as tasks finish, a progress bar (tqdm) counts them, and ``DIR/results.csv`` is rewritten after each
   (to a temporary file, then renamed): a run stopped half-way keeps what it finished.
@@ -190,7 +190,7 @@ def _run_on_ray(
         ray.init(address=address, log_to_driver=False, logging_level="WARNING")
     else:
         ray.init(
-            num_cpus=workers or cpus(),
+            num_cpus=workers,  # None: Ray counts the CPUs, the cgroup's CPU quota included
             include_dashboard=False,
             log_to_driver=False,
             logging_level="WARNING",

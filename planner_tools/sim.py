@@ -728,6 +728,7 @@ def simulate(
     progress: Callable[[int, int], None] | None = None,
     model: BicycleModel | None = None,
     gains: TrackerGains | None = None,
+    collision: Callable[[VehicleState], bool] | None = None,
 ) -> SimResult:
     """Drive ``problem`` in closed loop (see the module docstring).
 
@@ -739,6 +740,11 @@ def simulate(
         progress: called with ``(cycles done, most cycles)`` after each cycle.
         model: vehicle model; default :meth:`BicycleModel.for_vehicle`.
         gains: tracker gains; default :class:`TrackerGains`.
+        collision: an outside collision check of the vehicle's state (e.g. CommonRoad's collision
+            checker at the scenario's time steps, :meth:`planner_tools.crjudge.CommonRoadScene.
+            collision_check`), asked at every sub-step of a cycle; given, a collision it finds ends the
+            run, and the simulator's own footprint check against the problem's obstacles is only counted
+            (``collisions``, ``collided_with``, ``min_clearance``).
 
     A ``problem.options.time_budget_ms`` is kept: plans that overrun it become fallbacks, so the run
     then depends on the machine's speed.
@@ -778,7 +784,9 @@ def simulate(
     hit0, clear0, ids0 = _hits(problem, static, [state])
     min_clearance = float(clear0.min()) if clear0.size else np.inf
     if hit0.any():
-        collisions, collided, termination = 1, ids0, "collision"
+        collisions, collided = 1, ids0
+    if (hit0.any() and collision is None) or (collision is not None and collision(state)):
+        termination = "collision"
     elif goal.reached_in([state], s_now) is not None:
         termination, time_to_goal = "goal", 0.0
 
@@ -839,6 +847,7 @@ def simulate(
         if hit.any():
             collisions += int(hit.sum())
             collided.extend(i for i in ids if i not in collided)
+        if (hit.any() and collision is None) or (collision is not None and any(map(collision, cycle))):
             termination = "collision"
             break
         reached = goal.reached_in(cycle, s_now)

@@ -184,6 +184,19 @@ def test_a_car_from_behind_that_runs_into_a_standing_ego_is_a_rear_end_collision
     assert standing.first_collision_time == pytest.approx(contact)
 
 
+def test_the_collision_check_of_a_state_asks_the_checker_at_its_time_step() -> None:
+    scene = _scene("DEU_Test-1_1_T-1")
+    check = scene.collision_check(3.0, 4.508, 1.61)
+    x = float(scene.problem.initial_state.position[0])
+
+    def at(t: float) -> SimpleNamespace:
+        return SimpleNamespace(t=t, x=x, y=2.1, yaw=0.0)
+
+    contact = math.ceil((35.1 - 2.254 - 19.25) / 10.0 / 0.1) * 0.1  # as in the test above
+    assert not check(at(0.0)) and not check(at(contact - 0.1))
+    assert check(at(contact)) and not check(at(contact + 0.05))  # between time steps: not judged
+
+
 def test_running_into_the_car_ahead_is_a_collision_but_not_rear_end() -> None:
     scene = _scene("DEU_Test-1_1_T-1")
     # behind the car (x = 17 m at t = 0, 10 m/s), the ego at 15 m/s from x = 8 m catches it with its front
