@@ -34,8 +34,9 @@
     at its first colliding time step: the obstacle is dynamic (recorded traffic, which does not react to
     the ego); the overlap of the two footprints has its centroid behind the ego's centre along the ego's
     yaw (the rear half of the ego); the obstacle heads within :data:`REAR_END_HEADING` of the ego's yaw;
-    and it closes in: its velocity along the ego's yaw exceeds the ego's speed. Any other collision is a
-    collision the ego had a part in.
+    and it closes in: its velocity along the ego's yaw exceeds the ego's speed (heading and speed from the
+    recorded state, or for a set-based prediction, which has none, from its occupancy's centre one time
+    step either side). Any other collision is a collision the ego had a part in.
   - **off-road** — time steps whose footprint is not inside the road, the union of the scenario's
     lanelets (shapely, :data:`ROAD_TOLERANCE`); the drivability checker's road-boundary construction
     needs commonroad-io's pre-2026 shapes as well.
@@ -48,6 +49,7 @@ Needs the optional extra ``commonroad``. Units: metres [m], seconds [s], radians
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -527,26 +529,41 @@ class CommonRoadScene:
         """Whether the ego's first contact with the dynamic obstacle ``ob`` at the ego's state ``ego`` is
         a rear-end collision (see the module docstring)."""
         step = int(ego.time_step)
-        state = ob.obstacle.state_at_time(step)
         occupancy = ob.obstacle.occupancy_at_time(step)
-        if state is None or occupancy is None:
+        motion = self._obstacle_motion(ob.obstacle, step)
+        if occupancy is None or motion is None:
             return False
+        heading, speed = motion
         yaw = float(ego.orientation)
         box = shapely.Polygon(_box_corners(ego.position, yaw, length, width))
         overlap = box.intersection(shapely.make_valid(occupancy.shapely_object))
         point = overlap.centroid if not overlap.is_empty else occupancy.center
         along = (point.x - ego.position[0]) * math.cos(yaw) + (point.y - ego.position[1]) * math.sin(yaw)
-        heading = float(getattr(state, "orientation", yaw) or 0.0)
-        speed = getattr(state, "velocity", None)
-        if speed is None:  # from the occupancies' centres one step either side
-            before = ob.obstacle.occupancy_at_time(step - 1)
-            after = ob.obstacle.occupancy_at_time(step + 1)
-            ends = [o for o in (before, occupancy, after) if o is not None]
-            gap = (len(ends) - 1) * self.dt
-            speed = ends[0].center.distance(ends[-1].center) / gap if gap > 0 else 0.0
         dpsi = _wrap(heading - yaw)
-        closing = float(speed) * math.cos(dpsi) - float(ego.velocity)
+        closing = speed * math.cos(dpsi) - float(ego.velocity)
         return along < 0.0 and abs(dpsi) <= REAR_END_HEADING and closing > 0.0
+
+    def _obstacle_motion(self, obstacle: Any, step: int) -> tuple[float, float] | None:
+        """``(heading [rad], speed [m/s])`` of a dynamic obstacle at ``step``: its recorded state's, else
+        (a set-based prediction has no states) from its occupancy's centre one step either side; None
+        when it does not move and has no recorded heading."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # commonroad-io warns that set-based predictions have no state
+            state = obstacle.state_at_time(step)
+        heading = getattr(state, "orientation", None) if state is not None else None
+        speed = getattr(state, "velocity", None) if state is not None else None
+        if heading is not None and speed is not None:
+            return _wrap(float(heading)), float(speed)
+        around = [(k, obstacle.occupancy_at_time(k)) for k in (step - 1, step, step + 1)]
+        known = [(k, o.center) for k, o in around if o is not None]
+        if len(known) < 2:
+            return None
+        (k0, a), (k1, b) = known[0], known[-1]
+        dx, dy = b.x - a.x, b.y - a.y
+        moved = math.hypot(dx, dy)
+        if moved < 1e-9:
+            return None if heading is None else (_wrap(float(heading)), 0.0)
+        return math.atan2(dy, dx), moved / ((k1 - k0) * self.dt)
 
 
 def _box_corners(position: Any, yaw: float, length: float, width: float) -> list[list[float]]:

@@ -184,6 +184,17 @@ def test_a_car_from_behind_that_runs_into_a_standing_ego_is_a_rear_end_collision
     assert standing.first_collision_time == pytest.approx(contact)
 
 
+def test_a_set_based_prediction_from_behind_over_a_standing_ego_is_rear_end() -> None:
+    """DEU_LocationALower's traffic has set-based predictions (occupied sets, no states): the heading and
+    speed of the set come from its centre's motion."""
+    scene = _scene("DEU_LocationALower-28_1_S-1")
+    ego = scene.problem.initial_state
+    x, y, yaw = float(ego.position[0]), float(ego.position[1]), float(ego.orientation)
+    verdict = scene.judge(_motion(3.4, x, y, yaw), 4.508, 1.61, feasibility=False)
+    assert verdict.collided == ("17",) and verdict.rear_end == ("17",)
+    assert 2.0 < (verdict.first_collision_time or 0.0) < 2.3  # 26 m/s from about 22 m behind
+
+
 def test_the_collision_check_of_a_state_asks_the_checker_at_its_time_step() -> None:
     scene = _scene("DEU_Test-1_1_T-1")
     check = scene.collision_check(3.0, 4.508, 1.61)

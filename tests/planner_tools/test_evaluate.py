@@ -149,3 +149,9 @@ def test_evaluate_without_ray_says_how_to_install_it(
     monkeypatch.setitem(sys.modules, "ray", None)  # as if Ray were not installed
     assert cli_main(["evaluate", str(DATA / THREE[0]), "--out", str(tmp_path)]) == 2
     assert "kappa-planner[scale]" in capsys.readouterr().err
+
+
+def test_the_readme_explains_every_column() -> None:
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    missing = [name for name in ev.COLUMNS if f"| `{name}` |" not in readme]
+    assert not missing, f"README's table of results.csv lacks {missing}"
