@@ -246,7 +246,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     print(totals(report.outcomes))
     print(
         f"ran {len(report.ran)} scenes ({failed} failed), kept {report.skipped}; Ray start-up "
-        f"{report.startup_s:.1f} s, scenes {report.wall_s:.1f} s on {report.workers} workers; "
+        f"{report.startup_s:.1f} s, scenes {report.wall_s:.1f} s on {report.workers} worker(s); "
         f"wrote results.csv, summary.md{', gifs/' if args.gifs else ''} to {args.out}"
     )
     return 0

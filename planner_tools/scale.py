@@ -256,7 +256,8 @@ def write_summary(
     ran = report.ran
     busy = sum(o.wall_s or 0.0 for o in ran)
     simulated = sum(o.sim_time_s or 0.0 for o in ran)
-    where = f"Ray cluster at {report.address}" if report.address else f"local Ray, {report.workers} workers"
+    workers = f"{report.workers} worker{'' if report.workers == 1 else 's'}"
+    where = f"Ray cluster at {report.address}, {workers}" if report.address else f"local Ray, {workers}"
     try:
         load = " / ".join(f"{v:.2f}" for v in os.getloadavg())
     except OSError:
