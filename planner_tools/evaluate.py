@@ -238,10 +238,12 @@ def prepare(
         ego = request["ego"]
         limit = judge.speed_limit(judge.route_lanelets(request["reference_line"], [ego["x"], ego["y"]]))
         target = options.get("target_speed")
+        source = limit.source
         if target is not None:
             options["speed_limit"] = max(round(limit.value, 3), float(target))
+            if limit.value < float(target):  # the contract asks speed_limit ≥ target_speed
+                source = f"target; {limit.source} {limit.value:.2f} below it"
         request["options"] = options
-        source = limit.source
         cr_goal = judge.goal_request()
         if cr_goal:
             request["goal"] = cr_goal
@@ -301,7 +303,8 @@ COLUMNS: dict[str, str] = {
     "s_min), when the goal has a position",
     "target_speed": "the request's target speed [m/s]",
     "speed_limit": "the request's options.speed_limit [m/s]",
-    "speed_limit_source": "where the speed limit comes from: sign, lanelet type, scenario tag or default",
+    "speed_limit_source": "where the speed limit comes from: sign, lanelet type, scenario tag or default; "
+    "target when that limit is below the target speed (the limit is then the target)",
 }
 
 
@@ -534,7 +537,7 @@ def _gif(result: SimResult) -> bytes:
 
     with tempfile.TemporaryDirectory(prefix="kappa-gif-") as tmp:
         out = Path(tmp) / "sim.gif"
-        render.write_gif([result], out, stride=2, dpi=80, quiet=True)
+        render.write_gif([result], out, stride=2, dpi=100, quiet=True)
         return out.read_bytes()
 
 
