@@ -331,10 +331,12 @@ def _add_evaluate(sub: Any) -> None:
 def _add_commonroad(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "commonroad",
-        help="convert a CommonRoad scenario and drive it in closed loop to its goal",
-        description="Convert a CommonRoad scenario (XML; or a request JSON from tests/data/commonroad, or a "
-        "reduced scenario JSON) to a planning request and drive it in closed loop to the goal of its "
-        f"planning problem. Reading XML needs commonroad-io ({COMMONROAD.hint}).",
+        help="drive a CommonRoad scenario in closed loop and judge it by CommonRoad's checkers",
+        description="Convert a CommonRoad scenario (XML, .xml.gz; or a request JSON from "
+        "tests/data/commonroad, judged against the XML beside it; or a reduced scenario JSON) to a planning "
+        "request with the scenario's goal and speed limit, drive it in closed loop and judge it as "
+        "bench/commonroad.py does (CommonRoad's goal check, the drivability checker's collision and "
+        f"feasibility checks). Reading XML needs commonroad-io ({COMMONROAD.hint}).",
     )
     p.add_argument(
         "scenario", type=Path, help="CommonRoad XML, planning request JSON or reduced scenario JSON"
