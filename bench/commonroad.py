@@ -1,28 +1,23 @@
-"""Closed loop on real roads: ``python bench/commonroad.py`` drives every CommonRoad scenario and prints
-a markdown table (asserts nothing; also written to ``bench/results/commonroad.md``).
+"""Closed loop on real roads: ``python bench/commonroad.py`` drives every CommonRoad scene in one process
+and prints a markdown table (asserts nothing; also written to ``bench/results/commonroad.md``).
 
-Scenarios: the planning requests ``tests/data/commonroad/*.json`` (converted from the CommonRoad
-benchmark by the shared reference converter; ``index.json`` beside them gives each goal), or with
-``--xml DIR`` the CommonRoad XML files converted by :mod:`planner_tools.commonroad` (needs the ``commonroad``
-extra). Each is driven by :func:`planner_tools.sim.simulate` with a replan every 0.1 s until the goal, a
-collision or ``--duration`` simulated seconds (default 35 s).
+Scenes: the planning requests ``tests/data/commonroad/*.json`` (converted from the CommonRoad benchmark by
+the shared reference converter), each judged against the scenario's XML beside it (``X.xml`` or
+``X.xml.gz``); with ``--xml DIR`` the CommonRoad XML files of ``DIR`` (``*.xml``, ``*.xml.gz``) converted
+by :mod:`planner_tools.commonroad`. Each scene is prepared, driven and judged by
+:func:`planner_tools.evaluate.run_scene` — the same code as ``kappa-planner commonroad`` and
+``kappa-planner evaluate`` (on Ray): the request carries the scenario's goal and speed limit; the run
+(a replan every 0.1 s) ends at CommonRoad's goal, a collision, the goal's time window's end or
+``--duration`` simulated seconds (default 35 s); CommonRoad's goal check, the drivability checker's
+collision checker (rear-end collisions by traffic from behind apart) and its kinematic single-track
+feasibility check judge it; success = goal ∧ no collision ∧ feasible. See :mod:`planner_tools.evaluate`
+and :mod:`planner_tools.crjudge` for the details, ``planner_tools.evaluate.COLUMNS`` for the columns.
 
-Goal: the scenario's goal region as an arc length ``s_min`` on the reference; a scenario whose goal is a
-time window only (CommonRoad's "survive until …") gets ``min(reference end − one vehicle length,
-s_ego + target_speed · duration · 0.6)``, a distance it can reach in the time allowed.
+Vehicle (``--vehicle``): ``car`` (default), the scenario's vehicle, CommonRoad's vehicle type 2 (BMW 320i:
+wheelbase, rear axle, steering limits) planned as a car; ``point``, the same footprint as the point model;
+``request``, the request's own (the point model for the shared requests).
 
-Vehicle (``--vehicle``): the requests' own (``request``: the point model for the shared requests, the
-car of CommonRoad's vehicle type 2 for XML), that car (``car``: wheelbase, rear axle, steering limits of
-the BMW 320i), or the same footprint as the point model (``point``). ``--feasibility`` (the extra
-``commonroad``) judges every driven transition, every 0.1 s, with commonroad-drivability-checker's
-kinematic single-track feasibility check of vehicle type 2 (its position and orientation tolerances,
-its steering limits), as a CommonRoad solution of the driven motion would be judged.
-
-Columns: goal reached, collisions (sub-steps whose footprint hits an obstacle), min clearance of the
-footprint to any obstacle [m], the farthest a footprint corner got outside the lane [m] (≤ 0: inside),
-median / max wall time of one ``plan`` call [ms], replan cycles, the plans' status counts (ok / stopped /
-fallback / error), how the run ended, the distance driven, and with ``--feasibility`` the feasible
-transitions.
+:func:`scene_paths` and :func:`load_scene` are what other benches reuse to load the same scenes.
 """
 
 from __future__ import annotations
@@ -31,172 +26,118 @@ import argparse
 import os
 import sys
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 # bench/ itself must not be on the path: this file would shadow the commonroad package
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from planner.frenet import to_frenet  # noqa: E402
-from planner.reference import build_reference  # noqa: E402
-from planner_tools.commonroad import (  # noqa: E402 (after the path fix)
-    Conversion,
-    car_vehicle,
-    driven_states,
-    feasible_transitions,
-    load,
-    point_vehicle,
+from planner_tools.evaluate import (  # noqa: E402 (after the path fix)
+    DURATION,
+    VEHICLES,
+    Outcome,
+    Prepared,
+    Settings,
+    find_scenes,
+    prepare,
+    run_scene,
+    table,
+    write_csv,
 )
-from planner_tools.io import problem_from_json  # noqa: E402
-from planner_tools.sim import Goal, SimResult, simulate  # noqa: E402
+from planner_tools.sim import SimResult  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 REQUESTS = ROOT / "tests" / "data" / "commonroad"
 RESULTS = ROOT / "bench" / "results"
-#: share of the time allowed that a time-only goal's distance is planned for
-SURVIVAL_SHARE = 0.6
-
-
-#: the step [s] at which driven transitions are judged (the replan period)
-FEASIBILITY_DT = 0.1
 
 
 @dataclass(frozen=True)
 class Row:
+    """One scene: its name, the run, its row (:class:`planner_tools.evaluate.Outcome`), the goal's arc
+    length [m] (None: none), the scene's wall time [s]."""
+
     name: str
-    result: SimResult
-    goal_s: float
+    result: SimResult | None
+    outcome: Outcome
+    goal_s: float | None
     wall_s: float
-    feasible: list[bool] | None = None
 
 
-def scenario_goal(conv: Conversion, duration: float) -> float:
-    """The goal's arc length [m] on the reference (see the module docstring)."""
-    problem = problem_from_json(conv.request)
-    ref = build_reference(problem.reference_line)
-    end = ref.length - problem.vehicle.length
-    s_min = conv.goal.get("s_min")
-    if s_min is not None:
-        return float(min(s_min, end))
-    s_ego = float(to_frenet(ref, [[problem.ego.x, problem.ego.y]]).s[0])
-    speed = problem.options.target_speed or problem.vehicle.max_speed
-    return float(min(end, s_ego + speed * duration * SURVIVAL_SHARE))
+def scene_paths(xml: Path | None = None, only: list[str] | None = None) -> list[Path]:
+    """The scenes: the request JSONs of ``tests/data/commonroad`` or the XML files of ``xml``, those named
+    in ``only`` (file stems) if given."""
+    if xml is None:
+        paths = sorted(p for p in REQUESTS.glob("*.json") if p.name != "index.json")
+    else:
+        paths = [p for p in find_scenes([xml]) if not p.name.endswith(".json")]
+    if only:
+        paths = [p for p in paths if p.name.split(".")[0] in set(only)]
+    return paths
 
 
-def run_one(path: Path, duration: float, vehicle: str = "request", feasibility: bool = False) -> Row:
-    conv = load(path)
-    if vehicle != "request":
-        made = car_vehicle if vehicle == "car" else point_vehicle
-        conv = replace(conv, request={**conv.request, "vehicle": made(conv.request["vehicle"])})
-    problem = problem_from_json(conv.request)
-    goal_s = scenario_goal(conv, duration)
-    t0 = time.perf_counter()
-    result = simulate(problem, duration=duration, goal=Goal(s_min=goal_s))
-    wall = time.perf_counter() - t0
-    feasible = None
-    if feasibility:
-        feasible = feasible_transitions(driven_states(result.motion, FEASIBILITY_DT), FEASIBILITY_DT)
-    return Row(conv.name, result, goal_s, wall, feasible)
+def load_scene(path: Path, vehicle: str = "car", duration: float = DURATION) -> Prepared:
+    """A scene ready to run (:func:`planner_tools.evaluate.prepare`): its problem (with the scenario's goal
+    and speed limit), the simulator's goal, the duration."""
+    return prepare(path, Settings(vehicle=vehicle, duration=duration))
 
 
-def _fmt(value: float | None, digits: int = 2) -> str:
-    return "—" if value is None else f"{value:.{digits}f}"
-
-
-def _share(feasible: list[bool]) -> str:
-    return f"{sum(feasible)} / {len(feasible)}" if feasible else "—"
-
-
-def _percent(feasible: list[bool]) -> str:
-    return f"{100.0 * sum(feasible) / max(len(feasible), 1):.1f} %"
-
-
-def table(rows: list[Row]) -> str:
-    judged = any(r.feasible is not None for r in rows)
-    head = (
-        "| scenario | goal reached | collisions | min clearance [m] | lane departure [m] | plan median [ms] "
-        "| plan max [ms] | steps | ok / stopped / fallback / error | end | driven [m] / goal [m] |"
-    )
-    head += " feasible transitions |" if judged else ""
-    lines = [head, "|" + "---|" * (12 if judged else 11)]
-    for r in rows:
-        m = r.result.metrics
-        c = m.status_counts
-        start = float(r.result.motion.s[0])
-        line = (
-            f"| {r.name} | {'yes' if m.goal_reached else 'no'} | {m.collisions} | {_fmt(m.min_clearance)} "
-            f"| {m.max_lane_departure:.2f} | {m.planning_ms['median']:.0f} | {m.planning_ms['max']:.0f} "
-            f"| {m.steps} | {c['ok']} / {c['stopped']} / {c['fallback']} / {c['error']} | {m.termination} "
-            f"| {m.final_s - start:.0f} / {r.goal_s - start:.0f} |"
-        )
-        lines.append(line + (f" {_share(r.feasible or [])} |" if judged else ""))
-    reached = sum(r.result.metrics.goal_reached for r in rows)
-    hits = sum(r.result.metrics.collisions > 0 for r in rows)
-    departed = sum(r.result.metrics.max_lane_departure > 1e-3 for r in rows)
-    lines.append("")
-    summary = f"{reached}/{len(rows)} goals reached, {hits} runs with a collision, {departed} off the lane."
-    if judged:
-        every = [f for r in rows for f in (r.feasible or [])]
-        clean = [f for r in rows if r.result.metrics.collisions == 0 for f in (r.feasible or [])]
-        summary += (
-            f" Feasible transitions: {_share(every)} ({_percent(every)}); on the runs without a collision "
-            f"{_share(clean)} ({_percent(clean)})."
-        )
-    lines.append(summary)
-    return "\n".join(lines)
+def run_one(path: Path, duration: float = DURATION, vehicle: str = "car") -> Row:
+    """Drive and judge one scene in this process."""
+    run = run_scene(path, Settings(vehicle=vehicle, duration=duration), keep=True)
+    goal_s = None if run.prepared is None else run.prepared.goal_s
+    return Row(path.name, run.result, run.outcome, goal_s, run.outcome.wall_s or 0.0)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--duration", type=float, default=35.0, help="simulated seconds per scenario at most")
+    parser.add_argument("--duration", type=float, default=DURATION, help="simulated seconds per scene, most")
     parser.add_argument(
-        "--xml", type=Path, default=None, help="convert the CommonRoad XML files in DIR instead"
+        "--xml", type=Path, default=None, help="the CommonRoad XML files in DIR instead of the requests"
     )
     parser.add_argument("--only", nargs="*", default=None, help="scenario names (file stems) to run")
     parser.add_argument("--out", type=Path, default=None, help="markdown file (default bench/results/…)")
-    parser.add_argument(
-        "--vehicle", choices=("request", "car", "point"), default="request", help="see the module docstring"
-    )
-    parser.add_argument(
-        "--feasibility", action="store_true", help="judge the driven transitions with CommonRoad's checker"
-    )
+    parser.add_argument("--csv", type=Path, default=None, help="also write the rows as results.csv here")
+    parser.add_argument("--vehicle", choices=VEHICLES, default="car", help="see the module docstring")
     args = parser.parse_args(argv)
 
+    paths = scene_paths(args.xml, args.only)
     if args.xml is None:
-        paths = sorted(p for p in REQUESTS.glob("*.json") if p.name != "index.json")
-        source = f"requests in {REQUESTS.relative_to(ROOT)}"
-        out = args.out or RESULTS / "commonroad.md"
+        source = f"requests in {REQUESTS.relative_to(ROOT)}, judged against the XML beside each"
+        default_out = RESULTS / ("commonroad.md" if args.vehicle == "point" else "commonroad_car.md")
     else:
-        paths = sorted(args.xml.glob("*.xml"))
         source = f"CommonRoad XML in {args.xml}, converted by planner_tools.commonroad"
-        out = args.out or RESULTS / "commonroad_xml.md"
-    if args.only:
-        paths = [p for p in paths if p.stem in set(args.only)]
+        default_out = RESULTS / "commonroad_xml.md"
+    out = args.out or default_out
     rows: list[Row] = []
     t0 = time.perf_counter()
     for path in paths:
-        row = run_one(path, args.duration, args.vehicle, args.feasibility)
-        m = row.result.metrics
+        row = run_one(path, args.duration, args.vehicle)
+        o = row.outcome
         print(
-            f"{row.name}: {m.termination} after {m.sim_time:.1f} s sim, {m.steps} steps, "
-            f"{row.wall_s:.1f} s wall",
+            f"{row.name}: {o.status} {o.error} {o.termination} after {o.sim_time_s or 0:.1f} s sim, "
+            f"{o.cycles or 0} steps, {row.wall_s:.1f} s wall",
             file=sys.stderr,
         )
         rows.append(row)
     total = time.perf_counter() - t0
-    text = table(rows)
-    cpu = os.cpu_count()
+    outcomes = [r.outcome for r in rows]
+    text = table(outcomes)
+    try:
+        load = " / ".join(f"{v:.2f}" for v in os.getloadavg())
+    except OSError:
+        load = "—"
     header = (
         f"# Closed loop on CommonRoad scenarios\n\n"
         f"`python bench/commonroad.py{' '.join(['', *(argv if argv is not None else sys.argv[1:])])}`: "
-        f"{source}; vehicle: {args.vehicle}; "
-        f"replan every 0.1 s, at most {args.duration:.0f} s simulated per scenario; "
-        f"{total:.0f} s wall on {cpu} cores.\n\n"
+        f"{source}; vehicle: {args.vehicle}; replan every 0.1 s, at most {args.duration:g} s simulated per "
+        f"scene; {total:.0f} s wall on {os.cpu_count()} cores, load average {load} at the end.\n\n"
     )
     print(text)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(header + text + "\n")
+    if args.csv is not None:
+        write_csv(outcomes, args.csv)
     print(f"\nwrote {out} ({total:.0f} s)", file=sys.stderr)
     return 0
 

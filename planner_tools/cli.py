@@ -1,4 +1,5 @@
-"""Command line: ``kappa-planner simulate | compare | demo | commonroad`` — closed-loop runs, drawn.
+"""Command line: ``kappa-planner simulate | compare | demo | commonroad | evaluate`` — closed-loop runs,
+drawn and judged.
 
 * ``kappa-planner simulate ROAD.json --out DIR [--generator naive|transf_kappa]`` drives the planning
   request in ``ROAD.json`` (the body of ``POST /v1/plan``, e.g. from ``GET /v1/demo`` or
@@ -12,12 +13,15 @@
 * ``kappa-planner demo --out DIR`` is ``compare`` on the built-in demo U-turn.
 * ``--wheelbase W --rear-axle-offset L_R`` (and ``--max-steering-angle``, ``--max-steering-rate``) make
   the vehicle of ``simulate``, ``compare`` and ``demo`` a car: planned and driven at its rear axle.
-* ``kappa-planner commonroad SCENARIO [--out DIR]`` converts a CommonRoad scenario
-  (:mod:`planner_tools.commonroad`: XML, a request JSON or a reduced scenario JSON) and drives it to the
-  goal of its planning problem; ``--out`` adds ``request.json``, ``conversion.json`` and the files of
-  ``simulate``; ``--solution OUT.xml`` writes the driven trajectory as a CommonRoad solution (XML
-  scenarios); ``--vehicle car|point`` drives CommonRoad's vehicle type 2 car (an XML's own) or the
-  same footprint as the point model.
+* ``kappa-planner commonroad SCENARIO [--out DIR]`` prepares a scene (:func:`planner_tools.evaluate.prepare`:
+  a CommonRoad XML converted by :mod:`planner_tools.commonroad`, or a request JSON, judged against the
+  XML beside it; the scenario's goal and speed limit in the request), drives it and judges it as
+  ``bench/commonroad.py`` does; ``--out`` adds ``request.json``, ``conversion.json``, ``results.csv`` and
+  the files of ``simulate``; ``--solution OUT.xml`` writes the driven trajectory as a CommonRoad solution
+  (XML scenarios); ``--vehicle car|point|request``: CommonRoad's vehicle type 2 car (default), the same
+  footprint as the point model, or the request's own.
+* ``kappa-planner evaluate SCENARIO... --out DIR`` runs many scenes on Ray (:mod:`planner_tools.scale`):
+  ``DIR/results.csv``, ``DIR/summary.md``.
 
 The request is read by :func:`planner_tools.io.problem_from_json` (no pydantic, no ``app`` import: the
 command line is a client of the planner like the HTTP layer). Drawing (:mod:`planner_tools.render`) and
@@ -31,6 +35,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -38,8 +43,9 @@ from typing import Any
 from planner.errors import PlannerError
 from planner.problem import CAR_FIELDS, Generator, PlanningProblem
 from planner.roads import demo_problem
-from planner_tools.commonroad import CommonRoadError, car_vehicle, load, point_vehicle, write_solution
-from planner_tools.extras import COMMONROAD, TOOLS, MissingExtraError
+from planner_tools.commonroad import CommonRoadError, write_solution
+from planner_tools.evaluate import DURATION, VEHICLES, Settings, judge_run, prepare, table, totals, write_csv
+from planner_tools.extras import COMMONROAD, SCALE, TOOLS, MissingExtraError
 from planner_tools.io import problem_from_json
 from planner_tools.records import run_record, summary, write_json, write_steps_csv
 from planner_tools.runfile import write_run
@@ -80,13 +86,23 @@ def _car(problem: PlanningProblem, args: argparse.Namespace) -> PlanningProblem:
     return replace(problem, vehicle=replace(problem.vehicle, **fields))
 
 
-def _run(problem: PlanningProblem, generator: Generator, args: argparse.Namespace) -> SimResult:
+def _run(
+    problem: PlanningProblem,
+    generator: Generator,
+    args: argparse.Namespace,
+    *,
+    goal: Goal | None = None,
+    duration: float | None = None,
+) -> SimResult:
+    """A closed loop of ``problem`` (the car of ``--wheelbase``, … when given) with ``generator``, to
+    ``goal`` (default: ``--goal-s``, else the simulator's) for ``duration`` (default ``--duration``)."""
     from tqdm import tqdm
 
     problem = _car(problem, args)
     problem = replace(problem, options=replace(problem.options, generator=generator))
     model = BicycleModel.for_vehicle(problem.vehicle, centre_midway=args.centre_midway)
-    goal = None if args.goal_s is None else Goal(s_min=args.goal_s)
+    if goal is None and args.goal_s is not None:
+        goal = Goal(s_min=args.goal_s)
     with tqdm(total=1, desc=generator, unit="cycle", disable=_quiet(args)) as bar:
 
         def progress(done: int, total: int) -> None:
@@ -96,7 +112,7 @@ def _run(problem: PlanningProblem, generator: Generator, args: argparse.Namespac
 
         return simulate(
             problem,
-            duration=args.duration,
+            duration=args.duration if duration is None else duration,
             replan_period=args.replan_period,
             goal=goal,
             progress=progress,
@@ -169,33 +185,42 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_commonroad(args: argparse.Namespace) -> int:
+    settings = Settings(
+        vehicle=args.vehicle, duration=args.duration or DURATION, replan_period=args.replan_period
+    )
     try:
-        conv = load(args.scenario, planning_problem_id=args.planning_problem)
-        if args.vehicle != "request":
-            vehicle = conv.request["vehicle"]
-            vehicle = car_vehicle(vehicle) if args.vehicle == "car" else point_vehicle(vehicle)
-            conv = replace(conv, request={**conv.request, "vehicle": vehicle})
+        prepared = prepare(args.scenario, settings, planning_problem_id=args.planning_problem)
+        conv = prepared.conversion
         if args.solution is not None and "scenario_id" not in conv.info:
             raise CommonRoadError(f"--solution needs a CommonRoad XML scenario, not {args.scenario}")
     except (CommonRoadError, OSError, ValueError) as exc:
         raise PlannerError(str(exc)) from exc
-    problem = problem_from_json(conv.request)
-    if args.goal_s is None and conv.goal.get("s_min") is not None:
-        args.goal_s = float(conv.goal["s_min"])
-    result = _run(problem, args.generator or problem.options.generator, args)
-    print(f"{conv.name}: {len(conv.request['obstacles'])} obstacles, goal s ≥ {args.goal_s}")
+    goal = None if args.goal_s is not None else prepared.goal
+    t0 = time.perf_counter()
+    result = _run(
+        prepared.problem, args.generator or prepared.problem.options.generator, args, goal=goal,
+        duration=prepared.duration,
+    )  # fmt: skip
+    try:
+        outcome = judge_run(prepared, result, settings, time.perf_counter() - t0)
+    except CommonRoadError as exc:
+        raise PlannerError(str(exc)) from exc
+    judged = "CommonRoad's checkers" if prepared.judge is not None else "the simulator (no XML beside it)"
+    print(f"{conv.name}: {len(conv.request['obstacles'])} obstacles, judged by {judged}")
     print(summary([result]))
+    print(table([outcome]))
     out: Path | None = args.out
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        (out / "request.json").write_text(json.dumps(conv.request) + "\n")
+        (out / "request.json").write_text(json.dumps(prepared.request) + "\n")
         (out / "conversion.json").write_text(
             json.dumps({"name": conv.name, "goal": conv.goal, "info": conv.info}, indent=1) + "\n"
         )
+        write_csv([outcome], out / "results.csv")
         _write_run(result, out, args, {"scenario": str(args.scenario)})
         print(
-            f"wrote request.json, conversion.json, key frames, {'' if args.no_gif else 'sim.gif, '}"
-            f"steps.csv, metrics.json, run.json.gz to {out}"
+            f"wrote request.json, conversion.json, results.csv, key frames, "
+            f"{'' if args.no_gif else 'sim.gif, '}steps.csv, metrics.json, run.json.gz to {out}"
         )
     if args.solution is not None:
         try:
@@ -203,6 +228,27 @@ def _cmd_commonroad(args: argparse.Namespace) -> int:
         except CommonRoadError as exc:
             raise PlannerError(str(exc)) from exc
         print(f"wrote the driven trajectory as a CommonRoad solution (KS, vehicle type 2) to {written}")
+    return 0
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from planner_tools.scale import evaluate
+
+    settings = Settings(vehicle=args.vehicle, duration=args.duration, gif=args.gifs)
+    try:
+        report = evaluate(
+            args.scenarios, args.out, settings, workers=args.workers, address=args.address,
+            timeout=args.timeout, force=args.force, quiet=args.quiet,
+        )  # fmt: skip
+    except CommonRoadError as exc:
+        raise PlannerError(str(exc)) from exc
+    failed = sum(o.status != "done" for o in report.ran)
+    print(totals(report.outcomes))
+    print(
+        f"ran {len(report.ran)} scenes ({failed} failed), kept {report.skipped}; Ray start-up "
+        f"{report.startup_s:.1f} s, scenes {report.wall_s:.1f} s on {report.workers} worker(s); "
+        f"wrote results.csv, summary.md{', gifs/' if args.gifs else ''} to {args.out}"
+    )
     return 0
 
 
@@ -229,13 +275,68 @@ def _add_gif(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gif-dpi", type=int, default=100, help="GIF resolution [px/inch]")
 
 
+def _add_vehicle(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--vehicle",
+        choices=VEHICLES,
+        default="car",
+        help="the scenario's vehicle, CommonRoad's vehicle type 2 (BMW 320i) as a car (default); the "
+        "same footprint as the point model (point, no wheelbase); or the request's own (request)",
+    )
+
+
+def _add_evaluate(sub: Any) -> None:
+    p: argparse.ArgumentParser = sub.add_parser(
+        "evaluate",
+        help="drive and judge many scenes in parallel on Ray (here or on a cluster)",
+        description="Drive every scene in closed loop, one Ray task each, and judge it as "
+        "bench/commonroad.py does (CommonRoad's goal check, collision checker and feasibility against "
+        "the scenario's XML). "
+        "Writes DIR/results.csv (a row per scene) and DIR/summary.md (totals and the table); rerun with "
+        f"the same DIR to skip the scenes done. Needs Ray ({SCALE.hint}) and, for XML, commonroad-io "
+        f"({COMMONROAD.hint}).",
+    )
+    p.add_argument(
+        "scenarios",
+        nargs="+",
+        type=Path,
+        help="CommonRoad XML (.xml, .xml.gz) or planning request JSON files, or folders of them",
+    )
+    p.add_argument("--out", type=Path, required=True, help="output folder DIR (created)")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="local Ray: worker processes (default: the CPUs available); with --address: at most this "
+        "many scenes at once (default: the cluster's CPUs)",
+    )
+    p.add_argument(
+        "--address",
+        default=None,
+        help="a running Ray cluster (ray start --head; default: $RAY_ADDRESS, else a local Ray)",
+    )
+    p.add_argument(
+        "--timeout", type=_positive, default=900.0, help="seconds a scene may run before it is cancelled"
+    )
+    p.add_argument("--force", action="store_true", help="run every scene again, even those done in DIR")
+    p.add_argument("--gifs", action="store_true", help="an animation per scene in DIR/gifs/")
+    p.add_argument(
+        "--duration", type=_positive, default=DURATION, help="longest simulated time per scene [s]"
+    )
+    _add_vehicle(p)
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_evaluate)
+
+
 def _add_commonroad(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "commonroad",
-        help="convert a CommonRoad scenario and drive it in closed loop to its goal",
-        description="Convert a CommonRoad scenario (XML; or a request JSON from tests/data/commonroad, or a "
-        "reduced scenario JSON) to a planning request and drive it in closed loop to the goal of its "
-        f"planning problem. Reading XML needs commonroad-io ({COMMONROAD.hint}).",
+        help="drive a CommonRoad scenario in closed loop and judge it by CommonRoad's checkers",
+        description="Convert a CommonRoad scenario (XML, .xml.gz; or a request JSON from "
+        "tests/data/commonroad, judged against the XML beside it; or a reduced scenario JSON) to a planning "
+        "request with the scenario's goal and speed limit, drive it in closed loop and judge it as "
+        "bench/commonroad.py does (CommonRoad's goal check, the drivability checker's collision and "
+        f"feasibility checks). Reading XML needs commonroad-io ({COMMONROAD.hint}).",
     )
     p.add_argument(
         "scenario", type=Path, help="CommonRoad XML, planning request JSON or reduced scenario JSON"
@@ -249,13 +350,7 @@ def _add_commonroad(sub: Any) -> None:
     p.add_argument("--goal-s", type=float, default=None, help="goal: arc length reached [m] (overrides)")
     p.add_argument("--frame-every", type=_positive, default=2.0, help="key frame period [s]")
     _add_gif(p)
-    p.add_argument(
-        "--vehicle",
-        choices=("request", "car", "point"),
-        default="request",
-        help="the request's vehicle (XML: CommonRoad's vehicle type 2 car, BMW 320i), that car, or the "
-        "same footprint as the point model (no wheelbase)",
-    )
+    _add_vehicle(p)
     p.add_argument(
         "--solution",
         type=Path,
@@ -317,6 +412,7 @@ def _parser() -> argparse.ArgumentParser:
     demo.set_defaults(func=_cmd_demo)
 
     _add_commonroad(sub)
+    _add_evaluate(sub)
     return parser
 
 

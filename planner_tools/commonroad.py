@@ -41,14 +41,17 @@ Units: metres [m], seconds [s], radians [rad].
 from __future__ import annotations
 
 import contextlib
+import gzip
 import io
 import itertools
 import json
 import logging
 import math
+import shutil
+import tempfile
 import warnings
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -427,15 +430,43 @@ def _quiet() -> Iterator[None]:
         logger.setLevel(level)
 
 
+def scenario_name(path: str | Path) -> str:
+    """A scenario file's name without its suffixes ``.xml``, ``.xml.gz``, ``.json``."""
+    name = Path(path).name
+    for suffix in (".xml.gz", ".xml", ".json"):
+        if name.lower().endswith(suffix):
+            return name[: -len(suffix)]
+    return Path(path).stem
+
+
+@contextlib.contextmanager
+def _xml_file(path: str | Path) -> Iterator[str]:
+    """A path commonroad-io can open: ``path`` itself, or a gzip-compressed ``*.xml.gz`` decompressed
+    to a temporary file (deleted afterwards)."""
+    if not str(path).lower().endswith(".gz"):
+        yield str(path)
+        return
+    with tempfile.TemporaryDirectory(prefix="kappa-cr-") as tmp:
+        out = Path(tmp) / f"{scenario_name(path)}.xml"
+        try:
+            with gzip.open(path, "rb") as src, out.open("wb") as dst:
+                shutil.copyfileobj(src, dst)
+        except (OSError, EOFError) as exc:
+            raise CommonRoadError(f"{path}: not a readable gzip file ({exc})") from exc
+        yield str(out)
+
+
 def read_scenario(path: str | Path, planning_problem_id: int | None = None) -> tuple[Any, Any]:
-    """``(scenario, planning problem)`` of a CommonRoad XML file (the one with the smallest id unless
-    ``planning_problem_id`` is given)."""
+    """``(scenario, planning problem)`` of a CommonRoad XML file, plain or gzip-compressed
+    (``*.xml.gz``), the planning problem with the smallest id unless ``planning_problem_id`` is given."""
     _require_commonroad()
     from commonroad.common.file_reader import CommonRoadFileReader
 
     try:
-        with _quiet():
-            scenario, problems = CommonRoadFileReader(str(path)).open()
+        with _xml_file(path) as xml, _quiet():
+            scenario, problems = CommonRoadFileReader(xml).open()
+    except CommonRoadError:
+        raise
     except Exception as exc:  # commonroad-io raises anything on a broken file
         raise CommonRoadError(f"{path}: not a readable CommonRoad scenario ({exc})") from exc
     found = problems.planning_problem_dict
@@ -1045,10 +1076,12 @@ def feasible_transitions(states: Sequence[Any], dt: float, vehicle_type: int = V
 
 
 def load(path: str | Path, *, planning_problem_id: int | None = None) -> Conversion:
-    """A scenario from a CommonRoad XML file, a request JSON or a reduced scenario JSON."""
+    """A scenario from a CommonRoad XML file (plain or ``*.xml.gz``), a request JSON or a reduced
+    scenario JSON."""
     p = Path(path)
     if not p.exists():
         raise CommonRoadError(f"{p}: no such file")
     if p.suffix.lower() == ".json":
         return load_json(p)
-    return convert_scenario(p, planning_problem_id=planning_problem_id)
+    conv = convert_scenario(p, planning_problem_id=planning_problem_id)
+    return replace(conv, name=scenario_name(p))

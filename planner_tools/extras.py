@@ -2,7 +2,8 @@
 
 ``tools`` (matplotlib, Pillow, tqdm) draws and shows progress: every ``kappa-planner`` command and
 ``python -m planner_tools.figures`` need it. ``commonroad`` (commonroad-io,
-commonroad-drivability-checker) reads CommonRoad XML, writes solutions and checks their feasibility.
+commonroad-drivability-checker) reads CommonRoad XML, writes solutions and judges runs (goal, collisions,
+feasibility). ``scale`` (Ray) runs ``kappa-planner evaluate``'s scenes in parallel, here or on a cluster.
 The service (``app/``, ``planner/``, ``solvers/``) needs neither; ``pyproject.toml`` declares both
 under ``[project.optional-dependencies]`` with these distributions.
 """
@@ -55,3 +56,4 @@ TOOLS = Extra("tools", {"matplotlib": "matplotlib", "PIL": "Pillow", "tqdm": "tq
 COMMONROAD = Extra(
     "commonroad", {"commonroad": "commonroad-io", "commonroad_dc": "commonroad-drivability-checker"}
 )
+SCALE = Extra("scale", {"ray": "ray"})

@@ -410,16 +410,21 @@ class Goal:
         s_min: arc length on the reference (TransF-κ) at least this [m].
         polygon: inside this outline, shape (k, 2) [m], k ≥ 3.
         position, radius: within ``radius`` [m] of ``position`` (2,) [m].
+        check: an outside judge of the vehicle's state (e.g. CommonRoad's goal region,
+            :meth:`planner_tools.crjudge.CommonRoadScene.goal_check`), asked at every sub-step of a
+            cycle; the goal is reached at the first state it accepts (the other criteria, when given,
+            are asked at the cycle's end).
     """
 
     s_min: float | None = None
     polygon: FloatArray | None = None
     position: FloatArray | None = None
     radius: float | None = None
+    check: Callable[[VehicleState], bool] | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
-        if self.s_min is None and self.polygon is None and self.position is None:
-            raise InvalidInputError("give at least one of s_min, polygon or position", field="goal")
+        if self.s_min is None and self.polygon is None and self.position is None and self.check is None:
+            raise InvalidInputError("give at least one of s_min, polygon, position or check", field="goal")
         if (self.position is None) != (self.radius is None):
             raise InvalidInputError("position and radius go together", field="goal.radius")
         if self.radius is not None and not self.radius > 0.0:
@@ -435,8 +440,23 @@ class Goal:
                 raise InvalidInputError("must be a finite point [x, y]", field="goal.position")
             object.__setattr__(self, "position", pos)
 
+    @property
+    def geometric(self) -> bool:
+        """Whether it has a criterion of the centre's position (``s_min``, ``polygon``, ``position``)."""
+        return self.s_min is not None or self.polygon is not None or self.position is not None
+
+    def reached_in(self, states: list[VehicleState], s: float) -> VehicleState | None:
+        """The first of a cycle's ``states`` that reaches the goal (``check`` on each; the geometric
+        criteria, with the arc length ``s`` [m], on the last), or None."""
+        if self.check is not None:
+            hit = next((st for st in states if self.check(st)), None)
+            if hit is not None or not self.geometric:
+                return hit
+        last = states[-1]
+        return last if self.reached(last.x, last.y, s) else None
+
     def reached(self, x: float, y: float, s: float) -> bool:
-        """Whether a centre at ``(x, y)`` [m] with arc length ``s`` [m] meets every criterion."""
+        """Whether a centre at ``(x, y)`` [m] with arc length ``s`` [m] meets every geometric criterion."""
         if self.s_min is not None and s < self.s_min:
             return False
         if self.polygon is not None and not shapely.Polygon(self.polygon).covers(shapely.Point(x, y)):
@@ -477,9 +497,9 @@ def shift_obstacle(obstacle: Obstacle, t0: float) -> Obstacle:
 
 def problem_at(problem: PlanningProblem, state: VehicleState) -> PlanningProblem:
     """The problem the planner gets at ``state.t``: the vehicle as ego, predictions shifted, and the
-    request's goal window (seconds from now) counted from then."""
+    goal's time window (times from now) shifted by ``state.t``."""
     goal = problem.goal
-    if goal is not None and goal.time is not None:
+    if goal is not None and goal.time is not None and state.t != 0.0:
         goal = replace(goal, time=(goal.time[0] - state.t, goal.time[1] - state.t))
     return replace(
         problem,
@@ -708,6 +728,7 @@ def simulate(
     progress: Callable[[int, int], None] | None = None,
     model: BicycleModel | None = None,
     gains: TrackerGains | None = None,
+    collision: Callable[[VehicleState], bool] | None = None,
 ) -> SimResult:
     """Drive ``problem`` in closed loop (see the module docstring).
 
@@ -719,6 +740,11 @@ def simulate(
         progress: called with ``(cycles done, most cycles)`` after each cycle.
         model: vehicle model; default :meth:`BicycleModel.for_vehicle`.
         gains: tracker gains; default :class:`TrackerGains`.
+        collision: an outside collision check of the vehicle's state (e.g. CommonRoad's collision
+            checker at the scenario's time steps, :meth:`planner_tools.crjudge.CommonRoadScene.
+            collision_check`), asked at every sub-step of a cycle; given, a collision it finds ends the
+            run, and the simulator's own footprint check against the problem's obstacles is only counted
+            (``collisions``, ``collided_with``, ``min_clearance``).
 
     A ``problem.options.time_budget_ms`` is kept: plans that overrun it become fallbacks, so the run
     then depends on the machine's speed.
@@ -758,8 +784,10 @@ def simulate(
     hit0, clear0, ids0 = _hits(problem, static, [state])
     min_clearance = float(clear0.min()) if clear0.size else np.inf
     if hit0.any():
-        collisions, collided, termination = 1, ids0, "collision"
-    elif goal.reached(state.x, state.y, s_now):
+        collisions, collided = 1, ids0
+    if (hit0.any() and collision is None) or (collision is not None and collision(state)):
+        termination = "collision"
+    elif goal.reached_in([state], s_now) is not None:
         termination, time_to_goal = "goal", 0.0
 
     for k in range(total if termination == "timeout" else 0):
@@ -819,10 +847,12 @@ def simulate(
         if hit.any():
             collisions += int(hit.sum())
             collided.extend(i for i in ids if i not in collided)
+        if (hit.any() and collision is None) or (collision is not None and any(map(collision, cycle))):
             termination = "collision"
             break
-        if goal.reached(state.x, state.y, s_now):
-            termination, time_to_goal = "goal", state.t
+        reached = goal.reached_in(cycle, s_now)
+        if reached is not None:
+            termination, time_to_goal = "goal", reached.t
             break
 
     motion = _motion(ref, samples, sample_step)

@@ -23,7 +23,7 @@ import pytest
 from packaging.requirements import Requirement
 from packaging.utils import canonicalize_name
 
-from planner_tools.extras import COMMONROAD, TOOLS
+from planner_tools.extras import COMMONROAD, SCALE, TOOLS
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("app", "planner", "planner_tools", "solvers")
@@ -41,9 +41,10 @@ NOT_IN_PLANNER = (
     "granian",
     *TOOLS.modules,
     *COMMONROAD.modules,
+    *SCALE.modules,
 )
 #: what app/ must not import: the tooling and its extras
-NOT_IN_APP = ("planner_tools", *TOOLS.modules, *COMMONROAD.modules)
+NOT_IN_APP = ("planner_tools", *TOOLS.modules, *COMMONROAD.modules, *SCALE.modules)
 
 
 def module_names(root: Path, packages: Iterable[str]) -> dict[str, Path]:

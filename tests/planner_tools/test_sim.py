@@ -12,7 +12,7 @@ import pytest
 import planner_tools.sim as sim
 from planner.collision import prediction_at
 from planner.errors import InvalidInputError, PlannerError
-from planner.goal import Goal as RequestGoal
+from planner.goal import Goal as PlannerGoal
 from planner.problem import (
     CircleObstacle,
     DynamicObstacle,
@@ -201,7 +201,7 @@ def test_problem_at_uses_the_vehicle_and_shifted_predictions() -> None:
     assert isinstance(moved, DynamicObstacle)
     np.testing.assert_allclose(moved.prediction[0], [0.0, 5.0, 0.0, 0.1])
     # a request's goal window is in seconds from now: from the cycle's time on
-    timed = replace(problem, goal=RequestGoal(time=(4.0, 6.0), speed=(0.0, 1.0)))
+    timed = replace(problem, goal=PlannerGoal(time=(4.0, 6.0), speed=(0.0, 1.0)))
     goal = problem_at(timed, state).goal
     assert goal is not None and goal.time == (3.0, 5.0) and goal.speed == (0.0, 1.0)
     assert problem_at(problem, state).goal is None
@@ -334,6 +334,37 @@ def test_a_car_from_behind_is_a_collision_and_ends_the_run() -> None:
     assert m.collided_with == ("rammer",) and m.collisions >= 1 and m.min_clearance == 0.0
     assert m.sim_time < 2.0  # 15 m/s against 5 m/s from 7.5 m behind: ~0.75 s
     assert result.steps[-1].obstacles[0][0] == "rammer"
+
+
+def test_an_outside_collision_check_decides_when_a_collision_ends_the_run() -> None:
+    """With an outside judge of collisions (CommonRoad's checker), the simulator's own contacts are counted
+    but end nothing; the judge's collision ends the run at the cycle it finds it in."""
+    rammer = DynamicObstacle("rammer", 4.5, 1.8, np.array([[0.0, -2.0, 0.0, 0.0], [10.0, 148.0, 0.0, 0.0]]))
+    problem = PlanningProblem(
+        straight(200.0, step=5.0), Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, speed=5.0), (rammer,), Vehicle(),
+        Options(target_speed=5.0),
+    )  # fmt: skip
+    asked: list[float] = []
+
+    def late(state: VehicleState) -> bool:
+        asked.append(state.t)
+        return state.t >= 1.5 - 1e-9
+
+    result = simulate(problem, duration=3.0, collision=late)
+    m = result.metrics
+    assert m.termination == "collision" and m.sim_time == pytest.approx(1.5)
+    assert m.collided_with == ("rammer",) and m.collisions >= 1  # the simulator's own, counted
+    assert asked[0] == 0.0 and len(asked) == 1 + 150  # every sub-step up to 1.5 s
+    never = simulate(problem, duration=1.0, collision=lambda state: False)
+    assert never.metrics.termination == "timeout" and never.metrics.collisions > 0
+
+
+def test_each_cycles_request_carries_the_goal_with_its_times_from_now() -> None:
+    goal = PlannerGoal(time=(3.0, 4.0), speed=(0.0, 2.0))
+    problem = replace(PlanningProblem(straight(60.0), Lane(3.5, 3.5), Ego(0.0, 0.0, 0.0)), goal=goal)
+    asked = problem_at(problem, replace(_start(3.0), t=1.5))
+    assert asked.goal == PlannerGoal(time=(1.5, 2.5), speed=(0.0, 2.0))
+    assert problem_at(problem, _start(3.0)).goal == goal
 
 
 def test_a_planning_error_brakes_instead_of_crashing(monkeypatch: pytest.MonkeyPatch) -> None:
