@@ -16,7 +16,7 @@ from typing import Any, get_args
 import numpy as np
 
 from app.models.candidates import CandidatesDiagnostics
-from app.models.plan import STAGES, RequestTiming, TrajectoryPoint
+from app.models.plan import STAGES, LateralBackend, RequestTiming, TrajectoryPoint
 from app.models.planning import (
     AnyObstacle,
     Circle,
@@ -39,7 +39,7 @@ from planner.result import PlanResult
 from planner.result import Status as PlanStatus
 from planner.roads import demo_problem
 from planner.speed import ProfileKind
-from solvers.result import SolverStatus
+from solvers.result import SolveInfo, SolverStatus
 
 # -- requests ----------------------------------------------------------------------------------
 
@@ -135,6 +135,15 @@ def demo_request() -> PlanningRequest:
 
 
 # -- answers -----------------------------------------------------------------------------------
+
+
+def _lateral_backend(info: SolveInfo) -> str:
+    """The lateral QP's backend as the answer names it (``none`` for a QP that did not run); an unknown
+    one is a bug (``ValueError``)."""
+    backend = str(info.extras.get("backend", "none"))
+    if backend not in get_args(LateralBackend):
+        raise ValueError(f"unknown lateral QP backend {backend!r}")
+    return backend
 
 
 def _require_finite(what: str, *arrays: Any) -> None:
@@ -235,6 +244,7 @@ def plan_data(result: PlanResult, request_ms: Mapping[str, float]) -> dict[str, 
             "status": SolverStatus(diag.lateral_qp.status).value,
             "iterations": int(diag.lateral_qp.iterations),
             "solve_time_ms": float(diag.lateral_qp.solve_time_ms),
+            "backend": _lateral_backend(diag.lateral_qp),
         },
         "speed": {
             "status": SolverStatus(diag.speed.status).value,

@@ -1,4 +1,5 @@
-r"""The lateral QP (:mod:`solvers.lateral_qp_problem`) solved with OSQP.
+r"""The lateral QP (:mod:`solvers.lateral_qp_problem`) solved with OSQP, and through a second backend
+(:mod:`solvers.conic_qp`) where OSQP does not converge.
 
 Solving: OSQP (ADMM, ``eps = 1e-3``) then its polishing, which solves the equality system of the active
 set it guesses from the ADMM iterate: exact when the guess is right, the common case. Where a bound is
@@ -20,6 +21,7 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
+from solvers.conic_qp import BACKEND, solve_conic_qp
 from solvers.lateral_qp_problem import (
     FloatArray,
     LateralQPProblem,
@@ -33,7 +35,7 @@ from solvers.lateral_qp_problem import (
     qp_matrices,
     qp_vectors,
 )
-from solvers.result import SolveInfo, SolverStatus
+from solvers.result import Extra, SolveInfo, SolverStatus
 from solvers.validation import integer
 
 __all__ = [
@@ -69,6 +71,10 @@ _STATUS_MAP: dict[int, SolverStatus] = {
 
 #: an iterate this far beyond the problem's scale is taken as divergence, not as a path
 _DIVERGED = 1e6
+#: what goes to the second backend: OSQP out of iterations or failed (diverged included), and an
+#: inaccurate proof of infeasibility (not out of time: the budget is spent)
+_HAND_OVER = frozenset({SolverStatus.MAX_ITERATIONS, SolverStatus.FAILED})
+_INACCURATE_INFEASIBLE = int(osqp.SolverStatus.OSQP_PRIMAL_INFEASIBLE_INACCURATE)
 
 
 @dataclass
@@ -76,6 +82,7 @@ class _Workspace:
     """One OSQP set-up (fixed ``P``, ``A``) and the last solution (for the next warm start)."""
 
     solver: Any
+    P: sp.csc_matrix
     A: sp.csc_matrix
     max_iter: int
     time_limit_s: float
@@ -83,6 +90,11 @@ class _Workspace:
     last_y: FloatArray | None = None
     #: OSQP adapted its step ``rho`` in an earlier solve (it keeps the adapted value for the next one)
     rho_adapted: bool = False
+
+
+def _since(start: float) -> float:
+    """Seconds since ``start`` (a ``time.perf_counter()``)."""
+    return time.perf_counter() - start
 
 
 class LateralQPSolver:
@@ -101,16 +113,28 @@ class LateralQPSolver:
     breaks one by more (polishing failed, the ADMM iterate is accurate to about ``eps``) is
     ``solved_inaccurate``, its largest violation ``info.max_violation``.
 
-    A result's ``info.extras`` holds ``backend_status`` (OSQP's status text), ``polished`` (whether OSQP's
-    polishing succeeded) and ``returned``: ``"solution"``, ``"integrated_iterate"`` (out of iterations or
-    time: the last iterate's ``d″`` integrated from the initial state, consistent but not a solution) or
+    Second backend. Where OSQP runs out of iterations, fails, or finds the problem infeasible only
+    inaccurately (not where its time ran out: the budget is spent), the same ``(P, q, A, l, u)`` goes to
+    Clarabel through qpsolvers (:mod:`solvers.conic_qp`), at most ``second_max_iter`` interior-point
+    iterations. Its converged answer is returned (``solved`` when every constraint holds to
+    ``feasibility_tol``); otherwise OSQP's result is, with the second backend's verdict beside it (a
+    proof of infeasibility, say). Both stop on iteration counts: the same problem gets the same answer.
+
+    A result's ``info.extras`` holds ``backend`` (``"osqp"`` or ``"clarabel"``: which one's answer this
+    is), ``backend_status`` (that backend's status text), ``osqp_status``, ``second_status`` (the second
+    backend's status, ``""`` when it did not run), ``polished`` (whether OSQP's polishing succeeded) and
+    ``returned``: ``"solution"``, ``"integrated_iterate"`` (out of iterations or time: OSQP's last
+    iterate's ``d″`` integrated from the initial state, consistent but not a solution) or
     ``"clipped_reference"`` (infeasible or failed: the reference clipped to the bounds).
+    ``info.iterations`` counts OSQP's iterations (qpsolvers does not report Clarabel's).
 
     Args:
         eps_abs, eps_rel: OSQP's absolute and relative tolerances.
         polish: run OSQP's solution polishing.
         feasibility_tol: largest constraint violation accepted as ``solved``.
         max_cached: number of set-ups kept.
+        second_backend: hand what OSQP does not converge on to Clarabel.
+        second_max_iter: Clarabel's iteration limit.
     """
 
     def __init__(
@@ -121,6 +145,8 @@ class LateralQPSolver:
         polish: bool = True,
         feasibility_tol: float = 1e-6,
         max_cached: int = 4,
+        second_backend: bool = True,
+        second_max_iter: int = 50,
     ) -> None:
         if not (eps_abs > 0 and eps_rel >= 0 and feasibility_tol > 0):
             raise ValueError("eps_abs and feasibility_tol must be > 0 and eps_rel ≥ 0")
@@ -133,6 +159,8 @@ class LateralQPSolver:
             "warm_starting": True,
         }
         self._max_cached = integer("max_cached", max_cached, low=1)
+        self._second_backend = bool(second_backend)
+        self._second_max_iter = integer("second_max_iter", second_max_iter, low=1)
         self._workspaces: OrderedDict[_MatrixKey, _Workspace] = OrderedDict()
         self._setup_count = 0
 
@@ -166,7 +194,7 @@ class LateralQPSolver:
         )
         solver.update(q=q)
         self._setup_count += 1
-        workspace = _Workspace(solver=solver, A=A, max_iter=4000, time_limit_s=_NO_TIME_LIMIT_S)
+        workspace = _Workspace(solver=solver, P=P, A=A, max_iter=4000, time_limit_s=_NO_TIME_LIMIT_S)
         self._workspaces[key] = workspace
         while len(self._workspaces) > self._max_cached:
             self._workspaces.popitem(last=False)
@@ -260,15 +288,44 @@ class LateralQPSolver:
                 returned = "clipped_reference"
                 message += "; returned the reference clipped to the bounds (not a solution)"
 
+        osqp_status = str(info.status)
+        extras: dict[str, Extra] = {
+            "backend": "osqp",
+            "backend_status": osqp_status,
+            "osqp_status": osqp_status,
+            "second_status": "",
+            "polished": polished,
+            "returned": returned,
+        }
+        iterations = int(info.iter)
+        if self._second_backend and (status in _HAND_OVER or int(info.status_val) == _INACCURATE_INFEASIBLE):
+            second = solve_conic_qp(
+                workspace.P,
+                q,
+                workspace.A,
+                l,
+                u,
+                max_iter=self._second_max_iter,
+                time_limit_s=None if time_limit_s is None else max(limit - _since(start), 1e-3),
+                feasibility_tol=self._feasibility_tol,
+            )
+            extras["second_status"] = str(second.info.extras["backend_status"])
+            message += f"; {second.info.message}"
+            if second.info.converged:
+                x, status = second.x, second.info.status
+                extras.update(backend=BACKEND, backend_status=extras["second_status"], returned="solution")
+                if status is SolverStatus.SOLVED_INACCURATE:
+                    message += f" (constraints violated by up to {second.info.max_violation:.1e})"
+
         d, dd, ddd = x[:n].copy(), x[n : 2 * n].copy(), x[2 * n :].copy()
         solve_info = SolveInfo(
             status=status,
-            iterations=int(info.iter),
+            iterations=iterations,
             solve_time_ms=(time.perf_counter() - start) * 1e3 - setup_ms,
             objective=objective(problem, d, dd, ddd) if status.converged else None,
             message=message,
             max_violation=max_violation(workspace.A @ x, l, u),
             setup_time_ms=setup_ms,
-            extras={"backend_status": str(info.status), "polished": polished, "returned": returned},
+            extras=extras,
         )
         return LateralQPResult(info=solve_info, d=d, dd=dd, ddd=ddd, x=x)
