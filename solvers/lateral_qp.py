@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -297,35 +297,42 @@ class LateralQPSolver:
             "polished": polished,
             "returned": returned,
         }
+        A = workspace.A
         iterations = int(info.iter)
-        if self._second_backend and (status in _HAND_OVER or int(info.status_val) == _INACCURATE_INFEASIBLE):
-            second = solve_conic_qp(
-                workspace.P,
-                q,
-                workspace.A,
-                l,
-                u,
-                max_iter=self._second_max_iter,
-                time_limit_s=None if time_limit_s is None else max(limit - _since(start), 1e-3),
-                feasibility_tol=self._feasibility_tol,
-            )
-            extras["second_status"] = str(second.info.extras["backend_status"])
-            message += f"; {second.info.message}"
-            if second.info.converged:
-                x, status = second.x, second.info.status
-                extras.update(backend=BACKEND, backend_status=extras["second_status"], returned="solution")
-                if status is SolverStatus.SOLVED_INACCURATE:
-                    message += f" (constraints violated by up to {second.info.max_violation:.1e})"
 
-        d, dd, ddd = x[:n].copy(), x[n : 2 * n].copy(), x[2 * n :].copy()
-        solve_info = SolveInfo(
-            status=status,
-            iterations=iterations,
-            solve_time_ms=(time.perf_counter() - start) * 1e3 - setup_ms,
-            objective=objective(problem, d, dd, ddd) if status.converged else None,
-            message=message,
-            max_violation=max_violation(workspace.A @ x, l, u),
-            setup_time_ms=setup_ms,
-            extras=extras,
+        def result(x: FloatArray, status: SolverStatus, message: str) -> LateralQPResult:
+            d, dd, ddd = x[:n].copy(), x[n : 2 * n].copy(), x[2 * n :].copy()
+            info = SolveInfo(
+                status=status,
+                iterations=iterations,
+                solve_time_ms=(time.perf_counter() - start) * 1e3 - setup_ms,
+                objective=objective(problem, d, dd, ddd) if status.converged else None,
+                message=message,
+                max_violation=max_violation(A @ x, l, u),
+                setup_time_ms=setup_ms,
+                extras=extras,
+            )
+            return LateralQPResult(info=info, d=d, dd=dd, ddd=ddd, x=x)
+
+        hand_over = status in _HAND_OVER or int(info.status_val) == _INACCURATE_INFEASIBLE
+        if not (self._second_backend and hand_over):
+            return result(x, status, message)
+        second = solve_conic_qp(
+            workspace.P,
+            q,
+            A,
+            l,
+            u,
+            max_iter=self._second_max_iter,
+            time_limit_s=None if time_limit_s is None else max(limit - _since(start), 1e-3),
+            feasibility_tol=self._feasibility_tol,
         )
-        return LateralQPResult(info=solve_info, d=d, dd=dd, ddd=ddd, x=x)
+        extras["second_status"] = str(second.info.extras["backend_status"])
+        message += f"; {second.info.message}"
+        first = result(x, status, message)
+        if not second.info.converged:
+            return first
+        if second.info.status is SolverStatus.SOLVED_INACCURATE:
+            message += f" (constraints violated by up to {second.info.max_violation:.1e})"
+        extras.update(backend=BACKEND, backend_status=extras["second_status"], returned="solution")
+        return replace(result(second.x, second.info.status, message), first=first)

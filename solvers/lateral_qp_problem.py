@@ -218,7 +218,8 @@ class LateralQPResult:
     finite-difference derivatives), for display or as a fallback, not a solution of the QP
     (``info.extras["returned"]`` says which). ``info.max_violation`` is the largest violation of
     ``l ≤ Ax ≤ u`` by ``x`` (each row in its own unit: m, -, 1/m). ``x`` is the raw decision vector
-    ``[d, d′, d″]``.
+    ``[d, d′, d″]``. Where a second backend's solution is returned, ``first`` is the first backend's
+    own result (its unfinished iterate, say), else None.
     """
 
     info: SolveInfo
@@ -226,6 +227,7 @@ class LateralQPResult:
     dd: FloatArray
     ddd: FloatArray
     x: FloatArray
+    first: LateralQPResult | None = None
 
 
 # --------------------------------------------------------------------------------------------------------

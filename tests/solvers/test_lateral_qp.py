@@ -333,6 +333,13 @@ def test_what_osqp_does_not_finish_clarabel_solves() -> None:
     _assert_feasible(problem, result, tol=1e-6)
     _assert_reported(problem, result)
     np.testing.assert_allclose(result.x, exact.x, atol=1e-5)
+    # OSQP's own unfinished iterate comes along, for a caller whose own checks prefer it
+    assert result.first is not None and exact.first is None
+    assert result.first.info.status is SolverStatus.MAX_ITERATIONS and result.first.info.usable
+    assert (result.first.info.extras["backend"], result.first.info.extras["returned"]) == (
+        "osqp",
+        "integrated_iterate",
+    )
     assert result.info.objective == pytest.approx(exact.info.objective, rel=1e-6)
 
 
