@@ -1,5 +1,5 @@
 r"""The lateral QP (:mod:`solvers.lateral_qp_problem`) solved with OSQP, and through a second backend
-(:mod:`solvers.conic_qp`) where OSQP does not converge.
+(:mod:`solvers.conic_qp`, :mod:`solvers.lateral_qp_elastic`) where OSQP does not converge.
 
 Solving: OSQP (ADMM, ``eps = 1e-3``) then its polishing, which solves the equality system of the active
 set it guesses from the ADMM iterate: exact when the guess is right, the common case. Where a bound is
@@ -22,6 +22,7 @@ import osqp
 import scipy.sparse as sp
 
 from solvers.conic_qp import BACKEND, solve_conic_qp
+from solvers.lateral_qp_elastic import elastic_qp, split
 from solvers.lateral_qp_problem import (
     FloatArray,
     LateralQPProblem,
@@ -117,15 +118,19 @@ class LateralQPSolver:
     inaccurately (not where its time ran out: the budget is spent), the same ``(P, q, A, l, u)`` goes to
     Clarabel through qpsolvers (:mod:`solvers.conic_qp`), at most ``second_max_iter`` interior-point
     iterations. Its converged answer is returned (``solved`` when every constraint holds to
-    ``feasibility_tol``); otherwise OSQP's result is, with the second backend's verdict beside it (a
-    proof of infeasibility, say). Both stop on iteration counts: the same problem gets the same answer.
+    ``feasibility_tol``). Where it proves the QP infeasible, the elastic problem
+    (:mod:`solvers.lateral_qp_elastic`) gives the path breaking the offset and curvature bounds least
+    (``relaxed``: usable, not converged). Otherwise OSQP's result is returned, with the second backend's
+    verdict beside it. A result from Clarabel carries OSQP's own as ``first`` (its unfinished iterate,
+    for a caller whose checks prefer it). Every solve stops on iteration counts: the same problem gets
+    the same answer.
 
     A result's ``info.extras`` holds ``backend`` (``"osqp"`` or ``"clarabel"``: which one's answer this
     is), ``backend_status`` (that backend's status text), ``osqp_status``, ``second_status`` (the second
     backend's status, ``""`` when it did not run), ``polished`` (whether OSQP's polishing succeeded) and
-    ``returned``: ``"solution"``, ``"integrated_iterate"`` (out of iterations or time: OSQP's last
-    iterate's ``d″`` integrated from the initial state, consistent but not a solution) or
-    ``"clipped_reference"`` (infeasible or failed: the reference clipped to the bounds).
+    ``returned``: ``"solution"``, ``"relaxed"`` (the elastic problem's), ``"integrated_iterate"`` (out of
+    iterations or time: OSQP's last iterate's ``d″`` integrated from the initial state, consistent but not
+    a solution) or ``"clipped_reference"`` (infeasible or failed: the reference clipped to the bounds).
     ``info.iterations`` counts OSQP's iterations (qpsolvers does not report Clarabel's).
 
     Args:
@@ -330,9 +335,25 @@ class LateralQPSolver:
         extras["second_status"] = str(second.info.extras["backend_status"])
         message += f"; {second.info.message}"
         first = result(x, status, message)
-        if not second.info.converged:
+        if second.info.converged:
+            if second.info.status is SolverStatus.SOLVED_INACCURATE:
+                message += f" (constraints violated by up to {second.info.max_violation:.1e})"
+            extras.update(backend=BACKEND, backend_status=extras["second_status"], returned="solution")
+            return replace(result(second.x, second.info.status, message), first=first)
+        if second.info.status is not SolverStatus.INFEASIBLE:
             return first
-        if second.info.status is SolverStatus.SOLVED_INACCURATE:
-            message += f" (constraints violated by up to {second.info.max_violation:.1e})"
-        extras.update(backend=BACKEND, backend_status=extras["second_status"], returned="solution")
-        return replace(result(second.x, second.info.status, message), first=first)
+
+        # no solution: the path that breaks the offset and curvature bounds least
+        elastic = solve_conic_qp(
+            *elastic_qp(problem),
+            max_iter=self._second_max_iter,
+            time_limit_s=None if time_limit_s is None else max(limit - _since(start), 1e-3),
+            feasibility_tol=self._feasibility_tol,
+        )
+        if not elastic.info.converged:
+            return first
+        x_z, slack = split(problem, elastic.x)
+        message += f"; the bounds relaxed by up to {float(np.max(slack, initial=0.0)):.2e}"
+        elastic_status = str(elastic.info.extras["backend_status"])
+        extras.update(backend=BACKEND, backend_status=elastic_status, returned="relaxed")
+        return replace(result(x_z, SolverStatus.RELAXED, message), first=first)
