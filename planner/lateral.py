@@ -224,26 +224,29 @@ def _attempt(
     time_left: Callable[[], float | None],
     config: PlannerConfig,
 ) -> _Attempt:
-    """The lateral QP in ``corridor`` (again with the vehicle's own curvature limit where the
-    speed-dependent one leaves no solution)."""
+    """The lateral QP in ``corridor``, again with the vehicle's own curvature limit where the
+    speed-dependent one leaves no solution or none that keeps the footprint in the lane; of the answers
+    (and OSQP's own iterates beside the second backend's), the first in the lane, then solved."""
     bounds, d_ref = corridor.bounds, corridor.d_ref
     allowance = curvature_allowance(bounds.s, start, problem, config)
     qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
-    if not qp.info.usable:  # too fast for the road: keep at least the vehicle's limit
+    # Where the second backend answered, OSQP's own iterate comes along: an exact path may press a bound
+    # linearised at the candidate's heading, and a relaxed one break the lane; the first that keeps the
+    # footprint in the lane is taken.
+    options = [r for r in (qp, qp.first) if r is not None and r.info.usable]
+    inside = [_in_lane(ref, problem, bounds.s, r) for r in options]
+    if not qp.info.converged and not any(inside):
+        # too fast for the road, or no path in the lane: try the vehicle's own curvature limit
         limit = config.lateral.retry_curvature_share * problem.vehicle.curvature_limit
         allowance = np.full(bounds.s.shape, limit)
-        qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
-    in_lane = qp.info.usable and _in_lane(ref, problem, bounds.s, qp)
-    if (
-        not in_lane
-        and qp.first is not None
-        and qp.first.info.usable
-        and _in_lane(ref, problem, bounds.s, qp.first)
-    ):
-        # The second backend's exact solution may press a bound linearised at the candidate's heading
-        # where the path's own differs: OSQP's unfinished iterate is kept where it stays in the lane.
-        qp, in_lane = qp.first, True
-    return _Attempt(corridor, qp, in_lane)
+        retry = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
+        more = [r for r in (retry, retry.first) if r is not None and r.info.usable]
+        options, inside = options + more, inside + [_in_lane(ref, problem, bounds.s, r) for r in more]
+        qp = retry if not options or not qp.info.usable else qp
+    if options:
+        ranked = max(range(len(options)), key=lambda i: (inside[i], options[i].info.converged, -i))
+        qp = options[ranked]
+    return _Attempt(corridor, qp, any(inside))
 
 
 def _in_lane(ref: ReferenceLine, problem: PlanningProblem, s: FloatArray, qp: LateralQPResult) -> bool:
@@ -320,7 +323,10 @@ def lateral_stage(
             if retry.rank() > attempt.rank():
                 attempt = retry
     bounds, qp, road_end = attempt.corridor.bounds, attempt.qp, attempt.corridor.road_end
-    if qp.info.usable:  # an unfinished iterate comes integrated from the initial state: the checks decide
+    # An unfinished iterate comes integrated from the initial state, a relaxed path breaks some bounds:
+    # the checks decide, but where it leaves the lane and a block lies ahead, holding the offset is safer.
+    held = bounds.blocked is not None and not (qp.info.converged or attempt.in_lane)
+    if qp.info.usable and not held:
         path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
         return LateralPlan(path, qp.info, bounds, bounds.blocked, road_end)
     if bounds.blocked is None:
