@@ -24,7 +24,7 @@ sys.path.insert(0, str(ROOT))
 
 import qpsolvers  # noqa: E402 (after the path fix)
 
-from solvers.conic_qp import solve_conic_qp  # noqa: E402
+from solvers.conic_qp import qpsolvers_problem, solve_conic_qp  # noqa: E402
 from solvers.lateral_qp import LateralQPProblem, LateralQPSolver, build_qp_matrices  # noqa: E402
 from solvers.lateral_qp_problem import max_violation, objective  # noqa: E402
 
@@ -52,19 +52,11 @@ def collect(names: list[str], limit: int) -> list[LateralQPProblem]:
 
 
 def _problem(P: Any, q: np.ndarray, A: Any, lower: np.ndarray, upper: np.ndarray, dense: bool) -> Any:
-    """``l ≤ Ax ≤ u`` as qpsolvers' equalities and one-sided inequalities (as solvers.conic_qp does)."""
-    import scipy.sparse as sp
-
-    full = (P + sp.triu(P, 1).T).tocsc()
-    equal = lower == upper
-    rows = A[~equal]
-    has_u, has_l = np.isfinite(upper[~equal]), np.isfinite(lower[~equal])
-    G = sp.vstack([rows[has_u], -rows[has_l]]).tocsc()
-    h = np.concatenate([upper[~equal][has_u], -lower[~equal][has_l]])
-    Aeq = A[equal].tocsc()
+    """The QP as solvers.conic_qp hands it to qpsolvers, its matrices dense for a dense backend."""
+    problem = qpsolvers_problem(P, q, A, lower, upper)
     if dense:
-        return qpsolvers.Problem(full.toarray(), q, G.toarray(), h, Aeq.toarray(), lower[equal])
-    return qpsolvers.Problem(full, q, G, h, Aeq, lower[equal])
+        return qpsolvers.Problem(*(m.toarray() if hasattr(m, "toarray") else m for m in problem.unpack()))
+    return problem
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -42,7 +42,7 @@ from solvers.validation import integer
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["BACKEND", "ConicQPResult", "solve_conic_qp"]
+__all__ = ["BACKEND", "ConicQPResult", "qpsolvers_problem", "solve_conic_qp"]
 
 #: the qpsolvers backend
 BACKEND = "clarabel"
@@ -70,7 +70,7 @@ class ConicQPResult:
     x: FloatArray
 
 
-def _qpsolvers_problem(
+def qpsolvers_problem(
     P: sp.csc_matrix, q: FloatArray, A: sp.csc_matrix, lower: FloatArray, upper: FloatArray
 ) -> qpsolvers.Problem:
     """``l ≤ Ax ≤ u`` as equalities and one-sided inequalities (see the module docstring)."""
@@ -120,7 +120,7 @@ def solve_conic_qp(
         warnings.simplefilter("ignore")
         try:
             solution = qpsolvers.solve_problem(
-                _qpsolvers_problem(P, q, A, lower, upper), solver=BACKEND, **settings
+                qpsolvers_problem(P, q, A, lower, upper), solver=BACKEND, **settings
             )
         except (qpsolvers.QPError, ValueError, ArithmeticError) as exc:
             return _failed(n, start, f"{BACKEND} raised {type(exc).__name__}: {exc}")
