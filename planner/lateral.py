@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -138,11 +139,17 @@ class _Corridor:
 
 @dataclass(frozen=True)
 class _Attempt:
-    """A corridor, the QP's answer on it and whether its path keeps the footprint in the lane."""
+    """A corridor, the QP's answer on it and whether its path keeps the footprint in the lane (checked
+    when first asked: most plans never need to)."""
 
     corridor: _Corridor
     qp: LateralQPResult
-    in_lane: bool
+    lane_check: Callable[[], bool]
+
+    @cached_property
+    def in_lane(self) -> bool:
+        """Whether the path keeps the footprint in the lane at its knots."""
+        return self.lane_check()
 
     def better_than_unsolved(self) -> bool:
         """Solved, with no block on the way other than the road's end."""
@@ -230,6 +237,8 @@ def _attempt(
     bounds, d_ref = corridor.bounds, corridor.d_ref
     allowance = curvature_allowance(bounds.s, start, problem, config)
     qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
+    if qp.info.converged and qp.first is None:  # OSQP solved it: nothing to choose from
+        return _Attempt(corridor, qp, lambda: _in_lane(ref, problem, bounds.s, qp))
     # Where the second backend answered, OSQP's own iterate comes along: an exact path may press a bound
     # linearised at the candidate's heading, and a relaxed one break the lane; the first that keeps the
     # footprint in the lane is taken.
@@ -246,7 +255,8 @@ def _attempt(
     if options:
         ranked = max(range(len(options)), key=lambda i: (inside[i], options[i].info.converged, -i))
         qp = options[ranked]
-    return _Attempt(corridor, qp, any(inside))
+    found = any(inside)
+    return _Attempt(corridor, qp, lambda: found)
 
 
 def _in_lane(ref: ReferenceLine, problem: PlanningProblem, s: FloatArray, qp: LateralQPResult) -> bool:
