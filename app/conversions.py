@@ -17,7 +17,7 @@ import numpy as np
 
 from app.models.candidates import CandidatesDiagnostics
 from app.models.goal import Goal, GoalCircle, GoalDisc, GoalPolygon
-from app.models.plan import STAGES, RequestTiming, TrajectoryPoint
+from app.models.plan import STAGES, LateralBackend, RequestTiming, TrajectoryPoint
 from app.models.planning import (
     AnyObstacle,
     Circle,
@@ -43,7 +43,7 @@ from planner.result import PlanResult
 from planner.result import Status as PlanStatus
 from planner.roads import demo_problem
 from planner.speed import ProfileKind
-from solvers.result import SolverStatus
+from solvers.result import SolveInfo, SolverStatus
 
 # -- requests ----------------------------------------------------------------------------------
 
@@ -178,6 +178,15 @@ def demo_goal() -> Goal:
 # -- answers -----------------------------------------------------------------------------------
 
 
+def _lateral_backend(info: SolveInfo) -> str:
+    """The lateral QP's backend as the answer names it (``none`` for a QP that did not run); an unknown
+    one is a bug (``ValueError``)."""
+    backend = str(info.extras.get("backend", "none"))
+    if backend not in get_args(LateralBackend):
+        raise ValueError(f"unknown lateral QP backend {backend!r}")
+    return backend
+
+
 def _require_finite(what: str, *arrays: Any) -> None:
     """Raise ``ValueError`` (a bug of the server: answered 500) if any of ``arrays`` is not finite."""
     for array in arrays:
@@ -276,6 +285,7 @@ def plan_data(result: PlanResult, request_ms: Mapping[str, float]) -> dict[str, 
             "status": SolverStatus(diag.lateral_qp.status).value,
             "iterations": int(diag.lateral_qp.iterations),
             "solve_time_ms": float(diag.lateral_qp.solve_time_ms),
+            "backend": _lateral_backend(diag.lateral_qp),
         },
         "speed": {
             "status": SolverStatus(diag.speed.status).value,

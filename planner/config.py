@@ -51,8 +51,10 @@ class LateralConfig:
     qp_slack: float = 0.01
     #: bound on the lateral profile's jerk ``|d‴|`` [1/m²]
     jerk: float = 0.5
-    #: ADMM iterations of one lateral QP solve (a count, not a time: the same request gets the same answer)
-    max_iter: int = 4000
+    #: OSQP (ADMM) iterations of one lateral QP solve before the second backend takes the QP over: most
+    #: solves converge within it, and what does not (a tight or empty corridor: thousands) an interior
+    #: point method settles in tens (a count, not a time: the same request gets the same answer)
+    max_iter: int = 200
     #: the candidate's slope is averaged over this window to give the heading error of the bounds [m]
     heading_window: float = 4.0
     #: share of ``max_curvature`` the QP's curvature bound allows [-]

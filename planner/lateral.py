@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -25,11 +26,12 @@ from planner.bounds import LateralBounds, lateral_bounds, pass_left
 from planner.collision import FrenetBoxes, box_hits, footprint_extent
 from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
 from planner.ego import EgoFrenet
-from planner.kinematics import lateral_curvature
+from planner.kinematics import body_centre, lateral_curvature
 from planner.lane import lane_bounds
 from planner.problem import PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Path, frenet_path
+from planner.validation import leaves_lane
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
 from solvers.result import SolveInfo
 
@@ -120,24 +122,43 @@ def lateral_qp(
 
 
 @dataclass(frozen=True)
-class _Attempt:
-    """One set of bounds and the QP's answer on them: the bounds handed to the QP (cut before a block),
-    the reference offsets at their knots, whether a block is the road's end, and the QP's answer."""
+class _Corridor:
+    """One set of bounds for the QP: the bounds (cut before a block), the reference offsets at their
+    knots, and whether a block is the road's end."""
 
     bounds: LateralBounds
     d_ref: FloatArray
     road_end: bool
+
+    @property
+    def far(self) -> float:
+        """How far the first block is (none, or the road's end: infinitely far) [m]."""
+        blocked = self.bounds.blocked
+        return np.inf if blocked is None or self.road_end else float(self.bounds.s[-1])
+
+
+@dataclass(frozen=True)
+class _Attempt:
+    """A corridor, the QP's answer on it and whether its path keeps the footprint in the lane (checked
+    when first asked: most plans never need to)."""
+
+    corridor: _Corridor
     qp: LateralQPResult
+    lane_check: Callable[[], bool]
+
+    @cached_property
+    def in_lane(self) -> bool:
+        """Whether the path keeps the footprint in the lane at its knots."""
+        return self.lane_check()
 
     def better_than_unsolved(self) -> bool:
         """Solved, with no block on the way other than the road's end."""
-        return self.qp.info.converged and (self.bounds.blocked is None or self.road_end)
+        return self.qp.info.converged and self.corridor.far == np.inf
 
-    def rank(self) -> tuple[float, bool]:
-        """How good: the farther the first block (none: infinitely far), then solved over not."""
-        blocked = self.bounds.blocked
-        far = np.inf if blocked is None or self.road_end else float(self.bounds.s[-1])
-        return far, self.qp.info.converged
+    def rank(self) -> tuple[float, bool, bool]:
+        """How good: the farther the first block (none: infinitely far), then a path whose footprint
+        stays in the lane, then solved over not."""
+        return self.corridor.far, self.in_lane, self.qp.info.converged
 
 
 def _qp_bounds(
@@ -167,8 +188,7 @@ def _qp_bounds(
     return LateralBounds(s=s, lower=lower, upper=upper, blocked=bounds.blocked), d_ref
 
 
-def _attempt(
-    solver: LateralQPSolver,
+def _corridor(
     ref: ReferenceLine,
     problem: PlanningProblem,
     start: EgoFrenet,
@@ -176,11 +196,10 @@ def _attempt(
     d_ref: FloatArray,
     boxes: FrenetBoxes,
     lane_margin: float | None,
-    time_left: Callable[[], float | None],
     config: PlannerConfig,
-) -> _Attempt:
-    """Bounds at knots ``at`` (``lane_margin`` [m] to the lane's edges, default the options' margin) and
-    the lateral QP on them, tracking the candidate's offsets ``d_ref`` [m]."""
+) -> _Corridor:
+    """Bounds at knots ``at`` (``lane_margin`` [m] to the lane's edges, default the options' margin) for
+    the lateral QP tracking the candidate's offsets ``d_ref`` [m]."""
     vehicle, options = problem.vehicle, problem.options
     lane = lane_bounds(ref, problem.lane, at, half_width=0.5 * vehicle.width, margin=options.lateral_margin)
     bounds = lateral_bounds(
@@ -200,12 +219,52 @@ def _attempt(
     # a lane that runs out (narrower than the vehicle) at the reference's end is its end, not a block
     road_end = bounds.blocked is not None and at[bounds.blocked] >= reach
     bounds, d_ref = _qp_bounds(bounds, d_ref, start, reach, vehicle.length)
+    return _Corridor(bounds, d_ref, bool(road_end))
+
+
+def _attempt(
+    solver: LateralQPSolver,
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    corridor: _Corridor,
+    time_left: Callable[[], float | None],
+    config: PlannerConfig,
+) -> _Attempt:
+    """The lateral QP in ``corridor``, again with the vehicle's own curvature limit where the
+    speed-dependent one leaves no solution or none that keeps the footprint in the lane; of the answers
+    (and OSQP's own iterates beside the second backend's), the first in the lane, then solved."""
+    bounds, d_ref = corridor.bounds, corridor.d_ref
     allowance = curvature_allowance(bounds.s, start, problem, config)
     qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
-    if not qp.info.usable:  # too fast for the road: keep at least the vehicle's limit
-        allowance = np.full(bounds.s.shape, config.lateral.retry_curvature_share * vehicle.curvature_limit)
-        qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
-    return _Attempt(bounds, d_ref, bool(road_end), qp)
+    if qp.info.converged and qp.first is None:  # OSQP solved it: nothing to choose from
+        return _Attempt(corridor, qp, lambda: _in_lane(ref, problem, bounds.s, qp))
+    # Where the second backend answered, OSQP's own iterate comes along: an exact path may press a bound
+    # linearised at the candidate's heading, and a relaxed one break the lane; the first that keeps the
+    # footprint in the lane is taken.
+    options = [r for r in (qp, qp.first) if r is not None and r.info.usable]
+    inside = [_in_lane(ref, problem, bounds.s, r) for r in options]
+    if not qp.info.converged and not any(inside):
+        # too fast for the road, or no path in the lane: try the vehicle's own curvature limit
+        limit = config.lateral.retry_curvature_share * problem.vehicle.curvature_limit
+        allowance = np.full(bounds.s.shape, limit)
+        retry = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
+        more = [r for r in (retry, retry.first) if r is not None and r.info.usable]
+        options, inside = options + more, inside + [_in_lane(ref, problem, bounds.s, r) for r in more]
+        qp = retry if not options or not qp.info.usable else qp
+    if options:
+        ranked = max(range(len(options)), key=lambda i: (inside[i], options[i].info.converged, -i))
+        qp = options[ranked]
+    found = any(inside)
+    return _Attempt(corridor, qp, lambda: found)
+
+
+def _in_lane(ref: ReferenceLine, problem: PlanningProblem, s: FloatArray, qp: LateralQPResult) -> bool:
+    """Whether the footprint along the QP's path stays in the lane at its knots ``s`` [m] (the bounds
+    are linearised at the candidate's heading; the path's own may differ)."""
+    path = frenet_path(ref, s, qp.d, qp.dd, qp.ddd)
+    x, y = body_centre(path.x, path.y, path.heading, problem.vehicle)
+    return not bool(np.any(leaves_lane(ref, problem, x, y, path.heading)))
 
 
 @dataclass(frozen=True)
@@ -262,20 +321,27 @@ def lateral_stage(
     s_c, d_c = candidate
     at = knots(ref, start, float(s_c[-1]), config.lateral)
     d_ref = np.interp(at, s_c, d_c)
-    attempt = _attempt(solver, ref, problem, start, at, d_ref, boxes, None, time_left, config)
+    corridor = _corridor(ref, problem, start, at, d_ref, boxes, None, config)
+    attempt = _attempt(solver, ref, problem, start, corridor, time_left, config)
     if problem.options.lateral_margin > 0.0 and not attempt.better_than_unsolved():
         # Where the margin to the lane's edges leaves no room (a tight turn, a narrow passage), it is
         # dropped, as it is knot by knot where the lane is narrow (the margin to obstacles is kept).
-        relaxed = _attempt(solver, ref, problem, start, at, d_ref, boxes, 0.0, time_left, config)
-        if relaxed.rank() > attempt.rank():
-            attempt = relaxed
-    bounds, qp = attempt.bounds, attempt.qp
-    if qp.info.usable:  # an unfinished iterate comes integrated from the initial state: the checks decide
+        # Its QP is solved only where it could rank higher: a farther block, or a first QP unsolved.
+        relaxed = _corridor(ref, problem, start, at, d_ref, boxes, 0.0, config)
+        if (relaxed.far, True, True) > attempt.rank():
+            retry = _attempt(solver, ref, problem, start, relaxed, time_left, config)
+            if retry.rank() > attempt.rank():
+                attempt = retry
+    bounds, qp, road_end = attempt.corridor.bounds, attempt.qp, attempt.corridor.road_end
+    # An unfinished iterate comes integrated from the initial state, a relaxed path breaks some bounds:
+    # the checks decide, but where it leaves the lane and a block lies ahead, holding the offset is safer.
+    held = bounds.blocked is not None and not (qp.info.converged or attempt.in_lane)
+    if qp.info.usable and not held:
         path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
-        return LateralPlan(path, qp.info, bounds, bounds.blocked, attempt.road_end)
+        return LateralPlan(path, qp.info, bounds, bounds.blocked, road_end)
     if bounds.blocked is None:
-        return LateralPlan(None, qp.info, bounds, None, attempt.road_end)
-    return hold_path(ref, problem, start, boxes, bounds, bounds.blocked, attempt.road_end, qp.info)
+        return LateralPlan(None, qp.info, bounds, None, road_end)
+    return hold_path(ref, problem, start, boxes, bounds, bounds.blocked, road_end, qp.info)
 
 
 def hold_path(

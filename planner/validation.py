@@ -11,16 +11,16 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 import numpy as np
-import shapely
 from numpy.typing import ArrayLike, NDArray
 from shapely import LineString
 from shapely.geometry.base import BaseGeometry
 
-from planner.collision import box_corners, footprints, prediction_at
+from planner.collision import box_corners
 from planner.frenet import to_cartesian, to_frenet
 from planner.kinematics import lateral_acceleration, planned_point, steering_angle
 from planner.problem import DynamicObstacle, PlanningProblem, Vehicle
 from planner.reference import FloatArray, ReferenceLine, widths_at
+from planner.swept import moving_contacts, static_contacts
 from planner.trajectory import Trajectory
 
 
@@ -179,6 +179,24 @@ def _first(t: FloatArray, where: NDArray[np.bool_]) -> float:
     return float(t[int(np.argmax(where))])
 
 
+def leaves_lane(
+    ref: ReferenceLine, problem: PlanningProblem, x: FloatArray, y: FloatArray, heading: FloatArray
+) -> NDArray[np.bool_]:
+    """Per pose (the footprint's centre ``(x, y)`` [m], yaw ``heading`` [rad]), whether a corner of the
+    footprint is outside the lane (by TransF-κ, beyond :data:`_GEOMETRY_TOL`). The first pose is a
+    measurement: a vehicle already partly outside the lane may not get further out until it has moved
+    one length away."""
+    vehicle = problem.vehicle
+    corners = box_corners(x, y, heading, vehicle.length, vehicle.width).reshape(-1, 2)
+    fr = to_frenet(ref, corners)
+    left = widths_at(problem.lane.left_width, ref, fr.s, field_name="lane.left_width")
+    right = widths_at(problem.lane.right_width, ref, fr.s, field_name="lane.right_width")
+    outside = np.maximum(fr.d - left, -right - fr.d).reshape(-1, 4)
+    near_start = np.hypot(x - x[0], y - y[0]) < vehicle.length
+    allowance = np.where(near_start, max(float(outside[0].max()), 0.0), 0.0)[:, None]
+    return np.asarray(np.any(outside - allowance > _GEOMETRY_TOL, axis=1))
+
+
 def trajectory_violations(
     ref: ReferenceLine,
     problem: PlanningProblem,
@@ -194,8 +212,9 @@ def trajectory_violations(
     point (the centre, a car's rear axle) consistent with ``v·dt``; ``s`` never decreasing and strictly
     increasing while moving; no self-intersection; footprint inside the lane (all four corners by
     TransF-κ; no further out than the measured start where that is already partly outside) and clear of
-    every static obstacle and of every moving one at its predicted pose at the same time; for a car,
-    its kinematics (:func:`car_violations`).
+    every static obstacle and of every moving one at its predicted pose at the same time — in continuous
+    time, between the samples too (:mod:`planner.swept`: the pose moves linearly between samples, as the
+    predictions do); for a car, its kinematics (:func:`car_violations`).
     And the numbers agree with each other (:func:`consistency_violations`), the speed keeps ``max_speed``
     (:func:`speed_violations`) and the front stays before the reference line's end.
     """
@@ -238,17 +257,7 @@ def trajectory_violations(
     travelled = np.concatenate(([True], step > _STANDSTILL_STEP))
     if self_intersects(np.column_stack((traj.x, traj.y))[travelled]):
         out.append(Violation(kind.SELF_INTERSECTS))
-    prints = footprints(traj.x, traj.y, traj.heading, vehicle)
-    corners = box_corners(traj.x, traj.y, traj.heading, vehicle.length, vehicle.width).reshape(-1, 2)
-    fr = to_frenet(ref, corners)
-    left = widths_at(problem.lane.left_width, ref, fr.s, field_name="lane.left_width")
-    right = widths_at(problem.lane.right_width, ref, fr.s, field_name="lane.right_width")
-    outside = np.maximum(fr.d - left, -right - fr.d).reshape(-1, 4)
-    # The start is a measurement: a vehicle already partly outside the lane may not get further out
-    # until it has moved one length away.
-    near_start = np.hypot(traj.x - traj.x[0], traj.y - traj.y[0]) < vehicle.length
-    allowance = np.where(near_start, max(float(outside[0].max()), 0.0), 0.0)[:, None]
-    off_lane = np.any(outside - allowance > _GEOMETRY_TOL, axis=1)
+    off_lane = leaves_lane(ref, problem, traj.x, traj.y, traj.heading)
     if np.any(off_lane):
         out.append(Violation(kind.LANE, t=_first(t, off_lane)))
     # past the reference's end the road is not known: the front (by the reported s) no further past it
@@ -258,19 +267,13 @@ def trajectory_violations(
     if np.any(past_end):
         out.append(Violation(kind.ROAD_END, t=_first(t, past_end)))
     out += consistency_violations(ref, vehicle, traj) + speed_violations(problem, traj)
-    for ob_id, shape in static:
-        hits = shapely.intersects(prints, shape)
-        if np.any(hits):
-            out.append(Violation(kind.HITS_OBSTACLE, obstacle_id=ob_id, t=_first(t, hits)))
-    for ob in problem.obstacles:
-        if isinstance(ob, DynamicObstacle) and not any(ob.id == i for i, _ in static):
-            states = prediction_at(ob, t)
-            boxes = shapely.polygons(
-                box_corners(states[:, 0], states[:, 1], states[:, 2], ob.length, ob.width)
-            )
-            hits = shapely.intersects(prints, boxes)
-            if np.any(hits):
-                out.append(Violation(kind.HITS_MOVING_OBSTACLE, obstacle_id=ob.id, t=_first(t, hits)))
+    # in continuous time: the footprint between the samples too (planner.swept)
+    for contact in static_contacts(traj, vehicle, static):
+        out.append(Violation(kind.HITS_OBSTACLE, obstacle_id=contact.obstacle_id, t=contact.t))
+    static_ids = {ob_id for ob_id, _ in static}
+    movers = [ob for ob in problem.obstacles if isinstance(ob, DynamicObstacle) and ob.id not in static_ids]
+    for contact in moving_contacts(traj, vehicle, movers):
+        out.append(Violation(kind.HITS_MOVING_OBSTACLE, obstacle_id=contact.obstacle_id, t=contact.t))
     if vehicle.is_car:
         out += car_violations(vehicle, traj)
     return out

@@ -6,7 +6,8 @@ shapes, non-finite input, contradictory bounds) is a ``ValueError`` raised befor
 Two sets of statuses matter to callers, the same for every solver:
 
 * :data:`USABLE` — the solver returned an iterate the caller may use after its own checks (a converged
-  solution, or the best iterate when the iteration or time budget ran out);
+  solution, the best iterate when the iteration or time budget ran out, or — ``relaxed`` — the solution
+  with some bounds relaxed as little as possible where the problem has none);
 * :data:`CONVERGED` — the solver converged, to the requested accuracy (``solved``) or to a looser one or
   with a violation left (``solved_inaccurate``).
 
@@ -34,6 +35,9 @@ class SolverStatus(StrEnum):
     SOLVED_INACCURATE = "solved_inaccurate"
     #: the constraints admit no solution (primal infeasibility certificate)
     INFEASIBLE = "infeasible"
+    #: the constraints admit no solution; the returned values solve the problem with its soft-able bounds
+    #: relaxed as little as possible (an elastic formulation: usable after the caller's own checks)
+    RELAXED = "relaxed"
     #: the iteration limit ran out before convergence (the best iterate is returned)
     MAX_ITERATIONS = "max_iterations"
     #: the time limit ran out before convergence (the best iterate is returned)
@@ -59,6 +63,7 @@ USABLE: frozenset[SolverStatus] = frozenset(
         SolverStatus.SOLVED_INACCURATE,
         SolverStatus.MAX_ITERATIONS,
         SolverStatus.TIME_LIMIT,
+        SolverStatus.RELAXED,
     }
 )
 #: statuses of a converged solve (a subset of :data:`USABLE`)

@@ -7,7 +7,7 @@ document it (the OpenAPI schema) and the tests check every answer against them.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 from pydantic import Field, create_model
 from pydantic.json_schema import SkipJsonSchema
@@ -75,12 +75,20 @@ class CandidateCounts(ResponseModel):
     collision_free: int = Field(description="Candidates clear of every static obstacle.")
 
 
+#: which solver's answer the lateral QP's is (``none``: it did not run)
+LateralBackend = Literal["osqp", "clarabel", "none"]
+
+
 class LateralSolveInfo(ResponseModel):
     """How the lateral QP (offset d along the path) went."""
 
     status: SolverStatus
-    iterations: int = Field(description="Iterations of the QP solver (0 when it did not run).")
+    iterations: int = Field(description="OSQP's iterations (0 when it did not run).")
     solve_time_ms: float = Field(description="Wall time of the solve [ms].")
+    backend: LateralBackend = Field(
+        description="The solver whose answer this is: `osqp`, or `clarabel` (interior point, through "
+        "qpsolvers) where OSQP did not converge on the same QP; `none` when the QP did not run."
+    )
 
 
 class SpeedSolveInfo(ResponseModel):

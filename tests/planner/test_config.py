@@ -55,5 +55,5 @@ def test_solvers_are_kept_per_thread_and_per_solver_setting() -> None:
 
 def test_lateral_config_defaults_are_the_documented_ones() -> None:
     lateral = LateralConfig()
-    assert (lateral.knot_spacing, lateral.max_knots, lateral.max_iter) == (0.5, 240, 4000)
+    assert (lateral.knot_spacing, lateral.max_knots, lateral.max_iter) == (0.5, 240, 200)
     assert (lateral.curvature_share, lateral.retry_curvature_share, lateral.min_stretch) == (0.9, 0.99, 0.05)

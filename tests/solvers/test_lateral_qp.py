@@ -287,7 +287,7 @@ def test_unreachable_corridor_is_infeasible_not_an_exception() -> None:
 
 def test_iteration_limit_is_a_status_with_a_finite_path() -> None:
     problem = _lane_change()
-    result = LateralQPSolver().solve(problem, max_iter=1)
+    result = LateralQPSolver(second_backend=False).solve(problem, max_iter=1)
     assert result.info.status is SolverStatus.MAX_ITERATIONS
     assert not result.info.converged and result.info.iterations == 1 and result.info.objective is None
     assert np.all(np.isfinite(result.x))
@@ -298,13 +298,86 @@ def test_a_cut_short_iterate_is_a_consistent_path_the_caller_may_use() -> None:
     """Out of iterations, the last iterate's d″ integrated from the initial state: usable (not converged),
     the initial state and the integration rows exact, its violation of the bounds reported."""
     problem = _active_cases()["offset"][0]
-    result = LateralQPSolver().solve(problem, max_iter=50)
+    result = LateralQPSolver(second_backend=False).solve(problem, max_iter=50)
     assert result.info.status is SolverStatus.MAX_ITERATIONS and result.info.iterations == 50
     assert result.info.usable and not result.info.converged
     assert result.info.extras["returned"] == "integrated_iterate"
     violations = _violations(problem, result)
     assert max(violations[k] for k in ("initial", "jerk", "slope_integration", "offset_integration")) < 1e-9
     _assert_reported(problem, result)
+
+
+# --------------------------------------------------------------------------------------------------------
+# The second backend
+
+
+def test_what_osqp_does_not_finish_clarabel_solves() -> None:
+    """Out of OSQP iterations, the same QP goes to Clarabel: its solution, exact, says which backend."""
+    problem = _active_cases()["offset"][0]
+    exact = LateralQPSolver().solve(problem)  # OSQP, converged and polished
+    assert exact.info.status is SolverStatus.SOLVED and exact.info.extras["backend"] == "osqp"
+    assert exact.info.extras["second_status"] == ""
+    result = LateralQPSolver().solve(problem, max_iter=50)
+    assert result.info.status is SolverStatus.SOLVED and result.info.converged
+    extras = result.info.extras
+    assert (extras["backend"], extras["backend_status"], extras["second_status"]) == (
+        "clarabel",
+        "Solved",
+        "Solved",
+    )
+    assert (extras["osqp_status"], extras["returned"], result.info.iterations) == (
+        "maximum iterations reached",
+        "solution",
+        50,
+    )
+    _assert_feasible(problem, result, tol=1e-6)
+    _assert_reported(problem, result)
+    np.testing.assert_allclose(result.x, exact.x, atol=1e-5)
+    # OSQP's own unfinished iterate comes along, for a caller whose own checks prefer it
+    assert result.first is not None and exact.first is None
+    assert result.first.info.status is SolverStatus.MAX_ITERATIONS and result.first.info.usable
+    assert (result.first.info.extras["backend"], result.first.info.extras["returned"]) == (
+        "osqp",
+        "integrated_iterate",
+    )
+    assert result.info.objective == pytest.approx(exact.info.objective, rel=1e-6)
+
+
+def test_the_second_backend_gives_the_same_answer_every_time() -> None:
+    problem = _active_cases()["all"][0]
+    first = LateralQPSolver().solve(problem, max_iter=10, warm_start=False)
+    solver = LateralQPSolver()
+    solver.solve(_lane_change(n=problem.n), max_iter=10)  # something else first
+    again = solver.solve(problem, max_iter=10, warm_start=False)
+    assert first.info.extras["backend"] == again.info.extras["backend"] == "clarabel"
+    assert np.array_equal(first.x, again.x)
+
+
+def test_an_infeasible_problem_osqp_did_not_finish_gets_the_path_breaking_its_bounds_least() -> None:
+    """No solution: the elastic problem's path, usable (``relaxed``), consistent, its relaxation reported;
+    OSQP's own iterate beside it."""
+    problem = _unreachable()
+    result = LateralQPSolver().solve(problem, max_iter=5)
+    assert result.info.status is SolverStatus.RELAXED and result.info.usable and not result.info.converged
+    extras = result.info.extras
+    # Clarabel proves the QP infeasible, then solves its elastic problem
+    assert (extras["backend"], extras["second_status"]) == ("clarabel", "PrimalInfeasible")
+    assert (extras["backend_status"], extras["returned"]) == ("Solved", "relaxed")
+    assert "the bounds relaxed by up to" in result.info.message
+    violations = _violations(problem, result)
+    assert max(violations[k] for k in ("initial", "jerk", "slope_integration", "offset_integration")) < 1e-6
+    _assert_reported(problem, result)
+    # it turns back towards the corridor as hard as the jerk limit allows: never farther out than it starts
+    assert np.all(result.d <= problem.d0 + 1e-9) and result.d[-1] < problem.d0 - 0.5
+    assert result.first is not None and result.first.info.status is SolverStatus.MAX_ITERATIONS
+
+
+def test_no_second_backend_when_osqp_proved_infeasibility_or_ran_out_of_time() -> None:
+    result = LateralQPSolver().solve(_unreachable())
+    assert result.info.status is SolverStatus.INFEASIBLE and result.info.extras["second_status"] == ""
+    out_of_time = LateralQPSolver().solve(_active_cases()["all"][0], time_limit_s=1e-9)
+    assert out_of_time.info.status is SolverStatus.TIME_LIMIT
+    assert out_of_time.info.extras["second_status"] == ""
 
 
 # --------------------------------------------------------------------------------------------------------

@@ -9,7 +9,7 @@ from solvers.result import CONVERGED, USABLE, SolveInfo, SolverStatus
 
 def test_status_values() -> None:
     assert [s.value for s in SolverStatus] == [
-        "solved", "solved_inaccurate", "infeasible", "max_iterations", "time_limit", "failed",
+        "solved", "solved_inaccurate", "infeasible", "relaxed", "max_iterations", "time_limit", "failed",
     ]  # fmt: skip
     assert SolverStatus("infeasible") is SolverStatus.INFEASIBLE
 
@@ -20,6 +20,7 @@ def test_usable_and_converged_sets() -> None:
         SolverStatus.SOLVED_INACCURATE,
         SolverStatus.MAX_ITERATIONS,
         SolverStatus.TIME_LIMIT,
+        SolverStatus.RELAXED,
     } == USABLE
     assert {SolverStatus.SOLVED, SolverStatus.SOLVED_INACCURATE} == CONVERGED
     for status in SolverStatus:

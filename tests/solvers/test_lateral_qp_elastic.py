@@ -1,0 +1,74 @@
+"""The elastic lateral QP: the QP's own solution where it has one, the least relaxation where it has none."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from solvers.conic_qp import solve_conic_qp
+from solvers.lateral_qp import LateralQPSolver
+from solvers.lateral_qp_elastic import elastic_qp, split
+from solvers.lateral_qp_problem import LateralQPProblem, objective
+from solvers.result import SolverStatus
+
+
+def _corridor(n: int = 80, width: float = 1.0, d0: float = 0.0, **kw: float) -> LateralQPProblem:
+    s = np.arange(n) * 0.5
+    return LateralQPProblem(
+        ds=0.5,
+        d_lower=np.full(n, -width),
+        d_upper=np.full(n, width),
+        d_ref=1.5 * np.sin(s / 6.0),  # leaves the corridor: the offset bounds are pressed
+        jerk_max=0.5,
+        d0=d0,
+        ddd_lower=np.full(n, -0.2),
+        ddd_upper=np.full(n, 0.2),
+        **kw,
+    )
+
+
+def _elastic(problem: LateralQPProblem) -> tuple[SolverStatus, np.ndarray, np.ndarray]:
+    result = solve_conic_qp(*elastic_qp(problem))
+    x, slack = split(problem, result.x)
+    return result.info.status, x, slack
+
+
+def test_where_no_bound_presses_the_elastic_solution_is_the_qps() -> None:
+    problem = _corridor(width=3.0)  # the reference stays inside: no bound is active
+    exact = LateralQPSolver(second_backend=False).solve(problem)
+    assert exact.info.status is SolverStatus.SOLVED
+    status, x, slack = _elastic(problem)
+    assert status is SolverStatus.SOLVED
+    assert np.max(slack) < 1e-6
+    np.testing.assert_allclose(x, exact.x, atol=1e-4)
+    n = problem.n
+    cost = objective(problem, x[:n], x[n : 2 * n], x[2 * n :])
+    assert cost == pytest.approx(exact.info.objective, rel=1e-6)
+
+
+def test_where_it_has_none_the_bounds_are_relaxed_least() -> None:
+    # the ego 2 m left of a ±0.3 m corridor cannot get in before the corridor starts
+    problem = _corridor(width=0.3, d0=2.0)
+    status, x, slack = _elastic(problem)
+    assert status is SolverStatus.SOLVED and np.max(slack) > 0.1
+    n = problem.n
+    d = x[:n]
+    # the slacks are what the path needs: each offset bound broken by exactly its slack (knots 1 …)
+    broken = np.maximum(d[1:] - problem.d_upper[1:], problem.d_lower[1:] - d[1:]).clip(0.0)
+    np.testing.assert_allclose(slack[: n - 1], broken, atol=1e-4)  # to the interior point's accuracy
+    # the violation is spread over the knots, not put on a few: it falls off as the path comes back
+    outside = d[1:] - problem.d_upper[1:]
+    assert outside[0] > 1.0 and np.all(np.diff(outside[outside > 0.01]) < 0.0)
+    # a corridor that holds this path costs no relaxation at all
+    wide = replace(problem, d_lower=np.full(n, -3.0), d_upper=np.full(n, 3.0))
+    assert np.max(_elastic(wide)[2]) < 1e-6
+
+
+def test_the_solver_hands_an_unfinished_qp_to_the_elastic_problem() -> None:
+    problem = _corridor(width=0.3, d0=2.0)
+    result = LateralQPSolver().solve(problem, max_iter=3)
+    assert result.info.status is SolverStatus.RELAXED
+    _, x, _ = _elastic(problem)
+    np.testing.assert_allclose(result.x, x, atol=1e-9)
