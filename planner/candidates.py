@@ -92,10 +92,11 @@ class CandidateSet:
 
 
 def path_length(ego: Ego, vehicle: Vehicle, options: Options) -> float:
-    """Arc length the candidates cover [m]: the distance at the faster of current and target speed
-    over the horizon and then a gentle braking distance from it, at least ``min_path_length``."""
-    target = vehicle.max_speed if options.target_speed is None else options.target_speed
-    fastest = max(ego.speed, target)
+    """Arc length the candidates cover [m]: the distance at the faster of the current speed and the
+    fastest the plan may drive (``options.speed_limit``, else the target speed) over the horizon and then
+    a gentle braking distance from it, at least ``min_path_length``."""
+    cap = options.target_speed if options.speed_limit is None else options.speed_limit
+    fastest = max(ego.speed, vehicle.max_speed if cap is None else cap)
     # the speed profile keeps room to stop at half the vehicle's deceleration beyond its horizon
     braking = braking_distance(fastest, 0.5 * vehicle.max_deceleration) + fastest * BRAKE_DELAY
     return min(max(options.min_path_length, options.horizon_time * fastest + braking), MAX_PATH_LENGTH)

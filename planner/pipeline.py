@@ -21,6 +21,7 @@ from planner.collision import frenet_boxes
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.ego import EgoFrenet, start_state
 from planner.fallback import fallback
+from planner.follower import UnescapedFollower
 from planner.lane import corridor_width
 from planner.lateral import LateralPlan, lateral_stage
 from planner.problem import PlanningProblem
@@ -163,7 +164,7 @@ class _Run:
                 reason, path, candidate, self.ref, self.problem, self.start, self.static, planned, self.config
             )
         return self.result(
-            "fallback", out.message, out.trajectory, lateral, speed, out.profile, out.violations
+            "fallback", out.message, out.trajectory, lateral, speed, out.profile, out.violations, out.follower
         )
 
     def result(
@@ -175,11 +176,12 @@ class _Run:
         speed: SolveInfo,
         profile: ProfileKind,
         violations: tuple[Violation, ...] = (),
+        follower: UnescapedFollower | None = None,
     ) -> PlanResult:
         """The answer, its diagnostics timed up to now."""
         timing = self.timer.timing_ms()
         diag = PlanDiagnostics(
-            self.stats, lateral, speed, timing, self.ref.size, self.knots, self.best, profile
+            self.stats, lateral, speed, timing, self.ref.size, self.knots, self.best, profile, follower
         )
         cands = self.cands if self.problem.options.return_candidates else None
         return PlanResult(status, message, traj, cands, diag, violations)

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from planner.candidates import CandidateSet
+from planner.follower import UnescapedFollower
 from planner.speed import ProfileKind
 from planner.trajectory import Trajectory
 from planner.validation import Violation
@@ -42,6 +43,8 @@ class PlanDiagnostics:
         knots: knots of the lateral QP (0 when it did not run).
         chosen_candidate: index of the candidate followed.
         speed_profile: the speed profile the trajectory samples: the SQP's, or an analytic one.
+        follower: the vehicle from behind that still hits the trajectory as predicted, and why it is
+            not escaped (:mod:`planner.follower`); None when none does.
     """
 
     candidates: CandidateStats
@@ -52,6 +55,7 @@ class PlanDiagnostics:
     knots: int
     chosen_candidate: int | None
     speed_profile: ProfileKind
+    follower: UnescapedFollower | None = None
 
 
 @dataclass(frozen=True)

@@ -4,14 +4,18 @@ On ``steps`` knots ``t_k = k·Δt`` over the horizon (``Δt = horizon / steps``,
 configured number and about ``horizon / options.dt``) the SQP (:mod:`solvers.speed`) finds the arc
 length ``σ(t)`` [m] along the path within:
 
-* the speed limit ``v ≤ v_lim(σ)`` [m/s]: the target speed (a cap), the vehicle's, the curvature's
-  ``√(limit_margin · a_lat,max / |κ|)`` (a car's body: :func:`speed_limit`) and a car's steering rate's,
-  each the lowest within ``limit_reach`` either side;
+* the speed limit ``v ≤ v_lim(σ)`` [m/s]: the cap (:func:`speed_cap`: ``options.speed_limit``, else the
+  target speed), the vehicle's, the curvature's ``√(limit_margin · a_lat,max / |κ|)`` (a car's body:
+  :func:`speed_limit`) and a car's steering rate's, each the lowest within ``limit_reach`` either side;
 * a stop ``σ ≤ σ_stop``: ``stop_gap`` before the last free knot of a blocked road, or the front
   ``stop_gap`` before the reference's end, or the path's end;
 * the space-time bounds of the moving obstacles (:mod:`planner.st_bounds`);
 * acceleration within the vehicle's limits and ``|jerk| ≤ jerk`` [m/s³] (``emergency_jerk`` before a
   block, or when the comfortable jerk needs more than ``slack`` to keep the limits).
+
+The cost pulls the speed towards the target (:func:`target_speed`), which may lie below the cap: then only
+what the cost weighs against the target — the follower bound, or a caller's bound such as a goal's —
+raises the profile above it, never above the cap (the SQP's ``v_target`` and ``limit_v``).
 
 A profile that still ends past a stop or a space-time bound by more than ``position_slack`` [m] is
 replaced by full braking (:func:`braking`): it keeps every ``σ(t)`` as small as the limits allow. The
@@ -37,8 +41,11 @@ from planner.reference import FloatArray, ReferenceLine
 from planner.st_bounds import SpaceTimeBounds, space_time_bounds
 from planner.trajectory import Path, Trajectory, body_trajectory, sample
 from solvers.speed_problem import SpeedProblem, SpeedResult, integrate_jerk
-from solvers.speed_profiles import braking_profile, cruise_profile
+from solvers.speed_profiles import braking_profile, cruise_profile, limited_profile
 from solvers.speed_sqp import SpeedSolver
+
+#: a speed this far above the path's limit [m/s] counts as within it (rounding)
+_LIMIT_TOL = 1e-6
 
 
 class ProfileKind(StrEnum):
@@ -48,9 +55,13 @@ class ProfileKind(StrEnum):
     OPTIMISED = "optimised"
     #: full braking within the emergency jerk (analytic: no solve)
     BRAKING = "braking"
-    #: the acceleration released as fast as the emergency jerk allows, then the speed kept (analytic;
-    #: a brake that cannot be released before standstill stops instead)
+    #: the acceleration released as fast as the emergency jerk allows, then the speed kept, slowing
+    #: only where the path's curvature (or a car's steering rate) demands it (analytic; a brake that
+    #: cannot be released before standstill stops instead)
     KEEP_SPEED = "keep_speed"
+    #: the fastest within the limits: towards the speed cap as fast as the vehicle's acceleration and
+    #: the emergency jerk allow, slowing only where the path's limit demands it (analytic)
+    ESCAPE = "escape"
 
 
 @dataclass(frozen=True)
@@ -93,16 +104,28 @@ def profile_grid(options: Options, config: SpeedConfig = DEFAULT_CONFIG.speed) -
 
 
 def target_speed(problem: PlanningProblem) -> float:
-    """The speed the profile aims at [m/s]: the options' target within the vehicle's limit."""
-    v_max = problem.vehicle.max_speed
-    target = problem.options.target_speed
-    return v_max if target is None else min(target, v_max)
+    """The speed the profile cruises at [m/s]: the options' target (without one, the speed limit, else the
+    vehicle's max speed) within the vehicle's max speed."""
+    options = problem.options
+    target = options.target_speed
+    if target is None:
+        target = problem.vehicle.max_speed if options.speed_limit is None else options.speed_limit
+    return min(target, problem.vehicle.max_speed)
 
 
-def speed_limit(path: Path, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> FloatArray:
-    """The speed profile's limit along ``path`` [m/s] at its knots: the target speed, within the vehicle's,
-    the curvature's and, for a car with a steering-rate limit, the steering rate's (the target is a
-    cap: a faster vehicle behind does not raise it).
+def speed_cap(problem: PlanningProblem) -> float:
+    """The fastest the profile may drive [m/s]: ``options.speed_limit`` within the vehicle's max speed (at
+    least the target), else the target speed (:func:`target_speed`)."""
+    limit = problem.options.speed_limit
+    target = target_speed(problem)
+    return target if limit is None else max(min(limit, problem.vehicle.max_speed), target)
+
+
+def speed_limit(
+    path: Path, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG, cap: float | None = None
+) -> FloatArray:
+    """The speed profile's limit along ``path`` [m/s] at its knots: ``cap`` (default :func:`speed_cap`),
+    within the curvature's and, for a car with a steering-rate limit, the steering rate's.
 
     The curvature's: ``v² |κ| √(1 + (l_r κ)²) ≤ limit_margin · a_lat,max``, the lateral acceleration of the
     body's centre (:func:`planner.kinematics.lateral_acceleration`; ``v² |κ|`` for the point model). The
@@ -116,7 +139,7 @@ def speed_limit(path: Path, problem: PlanningProblem, config: PlannerConfig = DE
         curvature = curvature * np.sqrt(1.0 + (vehicle.rear_offset * path.curvature) ** 2)
     with np.errstate(divide="ignore"):
         lateral = np.sqrt(config.limit_margin * a_lat / curvature)
-    limit = np.minimum(target_speed(problem), lateral)
+    limit = np.minimum(speed_cap(problem) if cap is None else cap, lateral)
     steering = steering_rate_speed(path.sigma, path.curvature, vehicle, config.speed.steering_rate_share)
     if steering is not None:
         limit = np.minimum(limit, steering)
@@ -237,14 +260,44 @@ def braking(
     steps: int,
     dt: float,
     config: SpeedConfig = DEFAULT_CONFIG.speed,
-    keep_speed: bool = False,
 ) -> Profile:
-    """Full braking within the emergency jerk along ``path`` (the fallback's speed profile); with
-    ``keep_speed``, the acceleration released as fast and the speed kept instead (the fallback's
-    alternative when braking is hit from behind). Analytic: nothing is solved."""
+    """Full braking within the emergency jerk along ``path`` (the fallback's speed profile). Analytic:
+    nothing is solved."""
     sp = _speed_problem(path, problem, steps, dt, config.emergency_jerk, np.zeros_like(path.sigma), 0.0)
-    jerk = cruise_profile(sp) if keep_speed else braking_profile(sp)
-    s, vel, a = integrate_jerk(dt, 0.0, sp.v0, sp.a0, jerk)
-    t = np.arange(steps + 1, dtype=np.float64) * dt
-    kind = ProfileKind.KEEP_SPEED if keep_speed else ProfileKind.BRAKING
-    return Profile(kind, t, s, vel, a, jerk)
+    return _analytic(ProfileKind.BRAKING, sp, braking_profile(sp))
+
+
+def keep_speed(
+    path: Path, problem: PlanningProblem, steps: int, dt: float, config: PlannerConfig = DEFAULT_CONFIG
+) -> Profile:
+    """The acceleration released within the emergency jerk and the speed kept along ``path`` (the
+    fallback's alternative when braking is hit from behind), within the path's limit below the vehicle's
+    max speed (:func:`speed_limit`): where keeping the speed would break it, the speed after the release
+    is driven within it (:func:`solvers.speed_profiles.limited_profile`). Analytic."""
+    limit = speed_limit(path, problem, config, cap=problem.vehicle.max_speed)
+    sp = _speed_problem(path, problem, steps, dt, config.speed.emergency_jerk, limit, 0.0)
+    jerk = cruise_profile(sp)
+    s, v, _ = integrate_jerk(dt, 0.0, sp.v0, sp.a0, jerk)
+    if np.any(v > np.interp(s, sp.limit_s, sp.limit_v) + _LIMIT_TOL):
+        jerk = limited_profile(sp, float(v[-1]))
+    return _analytic(ProfileKind.KEEP_SPEED, sp, jerk)
+
+
+def escape(
+    path: Path, problem: PlanningProblem, steps: int, dt: float, config: PlannerConfig = DEFAULT_CONFIG
+) -> Profile:
+    """The fastest profile along ``path`` within the limits: towards the speed cap (:func:`speed_cap`; the
+    ego's speed where that is faster: it does not slow down for the cap) as fast as the vehicle's
+    acceleration and the emergency jerk allow, within the path's limit (:func:`speed_limit`;
+    :func:`solvers.speed_profiles.limited_profile`). How far ahead of a vehicle from behind the limits let
+    the vehicle get (the fallback's last alternative to braking into it). Analytic."""
+    cap = max(speed_cap(problem), min(problem.ego.speed, problem.vehicle.max_speed))
+    limit = speed_limit(path, problem, config, cap=cap)
+    sp = _speed_problem(path, problem, steps, dt, config.speed.emergency_jerk, limit, cap)
+    return _analytic(ProfileKind.ESCAPE, sp, limited_profile(sp, cap))
+
+
+def _analytic(kind: ProfileKind, sp: SpeedProblem, jerk: FloatArray) -> Profile:
+    """The profile of the jerks ``jerk`` from ``sp``'s initial state on its grid."""
+    s, vel, a = integrate_jerk(sp.dt, 0.0, sp.v0, sp.a0, jerk)
+    return Profile(kind, sp.t, s, vel, a, jerk)

@@ -115,6 +115,17 @@ class ViolationKind(StrEnum):
 
 #: the kinds that are collisions; the others break a limit without hitting anything by themselves
 HITS = frozenset({ViolationKind.HITS_OBSTACLE, ViolationKind.HITS_MOVING_OBSTACLE})
+#: the kinds that break the vehicle's own limits: a trajectory with one cannot be driven as planned
+LIMITS = frozenset(
+    {
+        ViolationKind.CURVATURE,
+        ViolationKind.LATERAL_ACCELERATION,
+        ViolationKind.ACCELERATION,
+        ViolationKind.SPEED,
+        ViolationKind.STEERING_ANGLE,
+        ViolationKind.STEERING_RATE,
+    }
+)
 
 
 @dataclass(frozen=True)

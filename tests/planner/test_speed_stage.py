@@ -10,7 +10,16 @@ from planner.pipeline import plan
 from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import build_reference
 from planner.roads import straight
-from planner.speed import ProfileKind, braking, profile_grid, speed_limit, target_speed
+from planner.speed import (
+    ProfileKind,
+    braking,
+    escape,
+    keep_speed,
+    profile_grid,
+    speed_cap,
+    speed_limit,
+    target_speed,
+)
 from planner.trajectory import frenet_path
 
 ROAD = straight(300.0, step=5.0)
@@ -63,20 +72,26 @@ def test_the_speed_limit_is_the_target_within_the_curvature_limit_and_reaches_ei
         assert np.all(limit[np.abs(path.sigma - sigma) <= 2.0 - 1e-9] <= v + 1e-9)
 
 
-@pytest.mark.parametrize("keep_speed", [False, True])
-def test_the_analytic_profiles_say_what_they_are(keep_speed: bool) -> None:
+ANALYTIC = {ProfileKind.BRAKING: braking, ProfileKind.KEEP_SPEED: keep_speed, ProfileKind.ESCAPE: escape}
+
+
+@pytest.mark.parametrize("kind", list(ANALYTIC))
+def test_the_analytic_profiles_say_what_they_are(kind: ProfileKind) -> None:
     problem = PlanningProblem(ROAD, Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, 12.0, acceleration=1.0))
     ref = build_reference(ROAD)
     s = np.linspace(10.0, 290.0, 100)
     path = frenet_path(ref, s, 0.0 * s, 0.0 * s, 0.0 * s)
-    profile = braking(path, problem, 80, 0.1, keep_speed=keep_speed)
-    assert profile.kind is (ProfileKind.KEEP_SPEED if keep_speed else ProfileKind.BRAKING)
+    profile = ANALYTIC[kind](path, problem, 80, 0.1)
+    assert profile.kind is kind
     assert profile.t[-1] == pytest.approx(8.0) and profile.s[0] == 0.0 and profile.v[0] == 12.0
-    if keep_speed:  # the acceleration released, then the speed kept
+    assert np.all(np.abs(np.diff(profile.a)) <= 30.0 * 0.1 + 1e-9)  # the emergency jerk
+    if kind is ProfileKind.KEEP_SPEED:  # the acceleration released, then the speed kept
         assert profile.a[-1] == pytest.approx(0.0) and profile.v[-1] > 12.0
-    else:
+    elif kind is ProfileKind.BRAKING:
         assert profile.v[-1] == pytest.approx(0.0, abs=1e-9)
-        assert np.all(np.abs(np.diff(profile.a)) <= 30.0 * 0.1 + 1e-9)  # the emergency jerk
+    else:  # up to the vehicle's max speed (no target, no speed limit), at its acceleration
+        assert profile.v[-1] == pytest.approx(problem.vehicle.max_speed, abs=0.05)
+        assert np.all(profile.a <= problem.vehicle.max_acceleration + 1e-9)
 
 
 def test_a_plan_that_passes_its_checks_uses_the_optimised_profile() -> None:
@@ -112,3 +127,46 @@ def test_a_fallback_that_brakes_keeps_the_sqps_own_solve_info() -> None:
     assert result.diagnostics.speed_profile is ProfileKind.BRAKING
     assert result.diagnostics.speed.iterations > 0  # the SQP ran; its info is not a braking profile's
     assert "braking profile" not in result.diagnostics.speed.message
+
+
+@pytest.mark.parametrize(
+    ("target", "limit", "cruise", "cap"),
+    [
+        (None, None, 20.0, 20.0),
+        (8.0, None, 8.0, 8.0),
+        (8.0, 14.0, 8.0, 14.0),
+        (None, 14.0, 14.0, 14.0),
+        (8.0, 30.0, 8.0, 20.0),
+        (25.0, 30.0, 20.0, 20.0),
+    ],
+)
+def test_the_profile_cruises_at_the_target_and_may_drive_up_to_the_speed_limit(
+    target: float | None, limit: float | None, cruise: float, cap: float
+) -> None:
+    """Without a speed limit the target is the cap (today's behaviour); with one, the cap is the speed
+    limit; both within the vehicle's max speed (20 m/s)."""
+    options = Options(target_speed=target, speed_limit=limit)
+    problem = PlanningProblem(ROAD, Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, 5.0), options=options)
+    assert (target_speed(problem), speed_cap(problem)) == (cruise, cap)
+    ref = build_reference(ROAD)
+    s = np.linspace(10.0, 100.0, 181)
+    path = frenet_path(ref, s, 0.0 * s, 0.0 * s, 0.0 * s)
+    np.testing.assert_allclose(speed_limit(path, problem), cap)
+
+
+def test_keeping_the_speed_slows_for_a_curve_ahead_and_speeds_up_after_it() -> None:
+    """At 14 m/s towards a 2 m stretch bent to 0.1 1/m (about 5 m/s at 3 m/s²): keeping the speed
+    slows before it, within the path's limit, and comes back to the speed after it."""
+    problem = PlanningProblem(
+        ROAD, Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, 14.0), options=Options(target_speed=14.0)
+    )
+    ref = build_reference(ROAD)
+    s = np.linspace(10.0, 250.0, 481)
+    bend = np.where((s > 60.0) & (s < 62.0), 0.1, 0.0)
+    path = frenet_path(ref, s, 0.0 * s, 0.0 * s, bend)
+    profile = keep_speed(path, problem, 160, 0.1)
+    limit = np.interp(profile.s, path.sigma, speed_limit(path, problem, cap=np.inf))
+    assert np.all(profile.v <= limit + 1e-6)
+    assert profile.v.min() < 6.0 and profile.v[-1] == pytest.approx(14.0, abs=1e-3)
+    straight_on = keep_speed(frenet_path(ref, s, 0.0 * s, 0.0 * s, 0.0 * s), problem, 160, 0.1)
+    np.testing.assert_allclose(straight_on.v, 14.0)  # nothing to slow for: the speed kept
