@@ -24,6 +24,7 @@ from app.settings import Settings
 from planner.pipeline import plan
 from planner.speed import ProfileKind
 from solvers.result import SolveInfo, SolverStatus
+from tests.regression.checks import plan_problems
 
 TRAJECTORY_KEYS = {"t", "x", "y", "heading", "curvature", "v", "a", "s", "d"}
 #: a car's geometry
@@ -326,3 +327,28 @@ def test_a_plan_that_cannot_start_within_its_budget_is_a_503_to_retry(demo: dict
     assert r.status_code == 503 and r.headers["Retry-After"] == "1"
     assert r.json()["error"]["code"] == "deadline_exceeded"
     assert "total;dur=" in r.headers["Server-Timing"]
+
+
+def _car_behind(speed_limit: float) -> dict[str, Any]:
+    """A single lane; the ego at 10 m/s (target 10); a car 12 m behind at 16 m/s that does not react."""
+    x0 = 30.0 - 4.5 - 12.0
+    prediction = [{"t": t, "x": x0 + 16.0 * t, "y": 0.0, "heading": 0.0} for t in np.arange(0.0, 8.01, 0.5)]
+    return {
+        "reference_line": [[0.0, 0.0], [300.0, 0.0]],
+        "lane": {"left_width": 1.75, "right_width": 1.75},
+        "obstacles": [{"id": "behind", "length": 4.5, "width": 1.8, "prediction": prediction}],
+        "ego": {"x": 30.0, "y": 0.0, "heading": 0.0, "speed": 10.0},
+        "options": {"target_speed": 10.0, "speed_limit": speed_limit},
+    }
+
+
+def test_a_car_behind_that_cannot_be_escaped_is_named_in_the_diagnostics(client: TestClient) -> None:
+    named = _plan(client, _car_behind(10.0))
+    assert named["status"] == "fallback"
+    follower = named["diagnostics"]["follower"]
+    assert (follower["obstacle_id"], follower["reason"]) == ("behind", "speed_limit") and follower["t"] > 0
+    assert named["diagnostics"]["speed"]["profile"] != "braking"  # it does not brake into it
+    assert plan_problems(_car_behind(10.0), named, ["fallback"]) == []
+    escaped = _plan(client, _car_behind(20.0))  # a speed limit above: it speeds up ahead of it
+    assert escaped["status"] == "ok" and "follower" not in escaped["diagnostics"]
+    assert plan_problems(_car_behind(20.0), escaped, ["ok"]) == []
