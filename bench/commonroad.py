@@ -18,6 +18,10 @@ the BMW 320i), or the same footprint as the point model (``point``). ``--feasibi
 kinematic single-track feasibility check of vehicle type 2 (its position and orientation tolerances,
 its steering limits), as a CommonRoad solution of the driven motion would be judged.
 
+Speed limit (``--speed-limit V`` [m/s]): every request's ``options.speed_limit`` becomes the larger of
+``V`` and its target speed (the shared requests set none: the target is then the cap), so that the plan
+may speed up to ``V`` to keep clear of a vehicle from behind.
+
 Columns: goal reached, collisions (sub-steps whose footprint hits an obstacle), min clearance of the
 footprint to any obstacle [m], the farthest a footprint corner got outside the lane [m] (≤ 0: inside),
 median / max wall time of one ``plan`` call [ms], replan cycles, the plans' status counts (ok / stopped /
@@ -84,11 +88,21 @@ def scenario_goal(conv: Conversion, duration: float) -> float:
     return float(min(end, s_ego + speed * duration * SURVIVAL_SHARE))
 
 
-def run_one(path: Path, duration: float, vehicle: str = "request", feasibility: bool = False) -> Row:
+def run_one(
+    path: Path,
+    duration: float,
+    vehicle: str = "request",
+    feasibility: bool = False,
+    speed_limit: float | None = None,
+) -> Row:
     conv = load(path)
     if vehicle != "request":
         made = car_vehicle if vehicle == "car" else point_vehicle
         conv = replace(conv, request={**conv.request, "vehicle": made(conv.request["vehicle"])})
+    if speed_limit is not None:
+        options = dict(conv.request.get("options", {}))
+        options["speed_limit"] = max(speed_limit, float(options.get("target_speed") or 0.0))
+        conv = replace(conv, request={**conv.request, "options": options})
     problem = problem_from_json(conv.request)
     goal_s = scenario_goal(conv, duration)
     t0 = time.perf_counter()
@@ -161,6 +175,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--feasibility", action="store_true", help="judge the driven transitions with CommonRoad's checker"
     )
+    parser.add_argument(
+        "--speed-limit",
+        type=float,
+        default=None,
+        metavar="V",
+        help="options.speed_limit [m/s] of every request (at least its target speed)",
+    )
     args = parser.parse_args(argv)
 
     if args.xml is None:
@@ -176,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[Row] = []
     t0 = time.perf_counter()
     for path in paths:
-        row = run_one(path, args.duration, args.vehicle, args.feasibility)
+        row = run_one(path, args.duration, args.vehicle, args.feasibility, args.speed_limit)
         m = row.result.metrics
         print(
             f"{row.name}: {m.termination} after {m.sim_time:.1f} s sim, {m.steps} steps, "
@@ -187,10 +208,11 @@ def main(argv: list[str] | None = None) -> int:
     total = time.perf_counter() - t0
     text = table(rows)
     cpu = os.cpu_count()
+    limit = "" if args.speed_limit is None else f"speed limit {args.speed_limit:g} m/s (or the target); "
     header = (
         f"# Closed loop on CommonRoad scenarios\n\n"
         f"`python bench/commonroad.py{' '.join(['', *(argv if argv is not None else sys.argv[1:])])}`: "
-        f"{source}; vehicle: {args.vehicle}; "
+        f"{source}; vehicle: {args.vehicle}; {limit}"
         f"replan every 0.1 s, at most {args.duration:.0f} s simulated per scenario; "
         f"{total:.0f} s wall on {cpu} cores.\n\n"
     )
