@@ -14,10 +14,11 @@ check is taken; else the least severe, on a tie the one a vehicle from behind hi
 earlier (so these before braking: a harder stop gives the follower less time). A follower that still hits
 the answer is named with the reason it is not escaped (:func:`planner.follower.unescaped`).
 
-Severity (:func:`severity`) ranks what a trajectory breaks, never its messages: first the vehicle's own
-limits (:data:`~planner.validation.LIMITS`: a trajectory outside them cannot be driven as planned, so it
-is no option while one within them exists), then hits of anything but a vehicle from behind, then hits
-from behind, then the other checks.
+Severity (:func:`severity`) ranks what a trajectory breaks, never its messages: first numbers that
+disagree (:data:`~planner.validation.CONSISTENCY`: no motion at all), then the vehicle's own limits
+(:data:`~planner.validation.LIMITS`: a trajectory outside them cannot be driven as planned, so it is no
+option while one within them exists), then hits of anything but a vehicle from behind, then hits from
+behind, then the other checks (the lane, the road's end).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from planner.reference import ReferenceLine
 from planner.speed import Profile, ProfileKind, braking, escape, keep_speed, profile_grid
 from planner.st_bounds import followers, moving_obstacles
 from planner.trajectory import Path, Trajectory
-from planner.validation import HITS, LIMITS, Violation, trajectory_violations
+from planner.validation import CONSISTENCY, HITS, LIMITS, Violation, trajectory_violations
 from solvers.speed_problem import SpeedResult
 
 
@@ -63,16 +64,18 @@ class _Option:
     violations: list[Violation]
 
 
-def severity(bad: Collection[Violation], rear: Collection[str]) -> tuple[int, int, int, int]:
-    """How bad a trajectory's violations ``bad`` are, to compare fallbacks (smaller is better): the
-    vehicle's limits broken (:data:`~planner.validation.LIMITS`), hits of obstacles other than the
-    vehicles behind (ids ``rear``), hits from behind, then the other checks (lane, …, which do not hit
+def severity(bad: Collection[Violation], rear: Collection[str]) -> tuple[int, int, int, int, int]:
+    """How bad a trajectory's violations ``bad`` are, to compare fallbacks (smaller is better): numbers
+    that disagree (:data:`~planner.validation.CONSISTENCY`), the vehicle's limits broken
+    (:data:`~planner.validation.LIMITS`), hits of obstacles other than the vehicles behind (ids
+    ``rear``), hits from behind, then the other checks (the lane, the road's end, which do not hit
     anything by themselves)."""
     rear_ids = set(rear)
+    wrong = sum(v.kind in CONSISTENCY for v in bad)
     limits = sum(v.kind in LIMITS for v in bad)
     hits = [v for v in bad if v.kind in HITS]
     behind = sum(from_behind(v, rear_ids) for v in hits)
-    return limits, len(hits) - behind, behind, len(bad) - len(hits) - limits
+    return wrong, limits, len(hits) - behind, behind, len(bad) - len(hits) - limits - wrong
 
 
 def _rank(bad: list[Violation], rear: set[str]) -> tuple[float, ...]:

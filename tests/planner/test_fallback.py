@@ -32,21 +32,25 @@ def _hit(kind: ViolationKind, obstacle_id: str) -> Violation:
     return Violation(kind, obstacle_id=obstacle_id, t=1.0)
 
 
-def test_a_broken_vehicle_limit_ranks_first_then_a_hit_ahead_then_one_from_behind_then_the_rest() -> None:
+def test_wrong_numbers_rank_first_then_a_broken_limit_a_hit_ahead_one_from_behind_and_the_rest() -> None:
     rear = {"behind"}
     from_behind = [_hit(KIND.HITS_MOVING_OBSTACLE, "behind")]
     leader = [_hit(KIND.HITS_MOVING_OBSTACLE, "leader")]
     wall = [_hit(KIND.HITS_OBSTACLE, "wall")]
     lane = [Violation(KIND.LANE, t=1.0)]
     lateral = [Violation(KIND.LATERAL_ACCELERATION, t=1.0, value=7.0)]
-    assert severity(from_behind, rear) == (0, 0, 1, 0)
-    assert severity(leader, rear) == severity(wall, rear) == (0, 1, 0, 0)  # only a follower is "behind"
+    step = [Violation(KIND.STEP, t=1.0)]
+    assert severity(from_behind, rear) == (0, 0, 0, 1, 0)
+    assert severity(leader, rear) == severity(wall, rear) == (0, 0, 1, 0, 0)  # only a follower is "behind"
     assert severity(lane, rear) < severity(from_behind, rear) < severity(wall, rear) < severity(lateral, rear)
+    assert severity(lateral, rear) < severity(step, rear)
     # a static obstacle with a follower's id is not hit from behind
-    assert severity([_hit(KIND.HITS_OBSTACLE, "behind")], rear) == (0, 1, 0, 0)
-    assert severity([*from_behind, *lane, *wall, *lateral], rear) == (1, 1, 1, 1)
+    assert severity([_hit(KIND.HITS_OBSTACLE, "behind")], rear) == (0, 0, 1, 0, 0)
+    assert severity([*from_behind, *lane, *wall, *lateral, *step], rear) == (1, 1, 1, 1, 1)
     for kind in (KIND.CURVATURE, KIND.ACCELERATION, KIND.SPEED, KIND.STEERING_ANGLE, KIND.STEERING_RATE):
-        assert severity([Violation(kind, t=0.0, value=1.0)], rear) == (1, 0, 0, 0)
+        assert severity([Violation(kind, t=0.0, value=1.0)], rear) == (0, 1, 0, 0, 0)
+    for kind in (KIND.FRENET, KIND.HEADING, KIND.TURN, KIND.REAR_AXLE_SLIPS, KIND.S_DECREASES, KIND.KAPPA_D):
+        assert severity([Violation(kind, t=0.0)], rear) == (1, 0, 0, 0, 0)
 
 
 def _hit_from_behind_when_braking() -> PlanningProblem:

@@ -259,7 +259,7 @@ def limit_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
     steering angle ``atan(W κ)`` within ``max_steering_angle``, default ``atan(W · max_curvature)``, and
     its rate within ``max_steering_rate``); the lateral acceleration of the centre ``v² |κ| √(1 + (l_r
     κ)²)`` (``l_r`` a car's rear axle offset, else 0) within ``max_lateral_acceleration``; the
-    acceleration within ``[−max_deceleration, max_acceleration]``. (Not ``max_speed``: a measured
+    acceleration within ``[−max_deceleration, max_acceleration]`` while moving. (Not ``max_speed``: a measured
     acceleration at the start may carry a fallback past it while the planner's jerk limit releases it;
     ``ok`` answers are held to it by :func:`full_problems`.)"""
     veh, out = problem.vehicle, []
@@ -287,8 +287,12 @@ def limit_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
             f"lateral acceleration {lateral[i]:.2f} m/s² above {veh.max_lateral_acceleration} m/s² at "
             f"{_at(traj, i)}"
         )
-    if np.any((traj.a > veh.max_acceleration + 1e-3) | (traj.a < -veh.max_deceleration - 1e-3)):
-        out.append(f"acceleration in [{traj.a.min():.2f}, {traj.a.max():.2f}] m/s² outside the limits")
+    # the acceleration where the vehicle moves at the point or the next (a standing one's "acceleration"
+    # changes no speed: a braking profile stopping a backward motion it cannot avoid reports one)
+    driven = moving | np.append(moving[1:], False)
+    a = traj.a[driven]
+    if np.any((a > veh.max_acceleration + 1e-3) | (a < -veh.max_deceleration - 1e-3)):
+        out.append(f"acceleration in [{a.min():.2f}, {a.max():.2f}] m/s² outside the limits")
     return out
 
 
