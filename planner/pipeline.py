@@ -28,7 +28,7 @@ from planner.problem import PlanningProblem
 from planner.reference import ReferenceLine, build_reference
 from planner.result import NOT_RUN, CandidateStats, PlanDiagnostics, PlanResult, Status
 from planner.selection import choose_candidate
-from planner.speed import Profile, ProfileKind, SpeedPlan, speed_stage
+from planner.speed import Profile, ProfileKind, SpeedPlan, reach_speed, speed_stage
 from planner.st_bounds import static_shapes
 from planner.thread_solvers import thread_solvers
 from planner.timing import StageTimer
@@ -49,7 +49,10 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
         ref = build_reference(problem.reference_line)
         start = start_state(ref, problem, config)
     with timer.stage("candidates"):
-        cands = generate_candidates(ref, problem.lane, problem.ego, vehicle, options, start=start)
+        fastest = reach_speed(ref, problem, start.s)
+        cands = generate_candidates(
+            ref, problem.lane, problem.ego, vehicle, options, start=start, reach_speed=fastest
+        )
         static = static_shapes(problem)
         boxes = frenet_boxes(ref, static, reach=corridor_width(problem, config))
         choice = choose_candidate(cands, boxes, problem, config)

@@ -38,7 +38,7 @@ from planner.kinematics import steering_rate_speed
 from planner.lateral import LateralPlan
 from planner.problem import Options, PlanningProblem, Vehicle
 from planner.reference import FloatArray, ReferenceLine
-from planner.st_bounds import SpaceTimeBounds, space_time_bounds
+from planner.st_bounds import SpaceTimeBounds, followers, moving_obstacles, space_time_bounds
 from planner.trajectory import Path, Trajectory, body_trajectory, sample
 from solvers.speed_problem import SpeedProblem, SpeedResult, integrate_jerk
 from solvers.speed_profiles import braking_profile, cruise_profile, limited_profile
@@ -119,6 +119,17 @@ def speed_cap(problem: PlanningProblem) -> float:
     limit = problem.options.speed_limit
     target = target_speed(problem)
     return target if limit is None else max(min(limit, problem.vehicle.max_speed), target)
+
+
+def reach_speed(ref: ReferenceLine, problem: PlanningProblem, start_s: float) -> float | None:
+    """How fast the candidates' paths must let the plan drive [m/s]: the speed cap when it lies above
+    the target and a vehicle comes from behind (:func:`planner.st_bounds.followers` of the ego at
+    ``start_s`` [m]: the follower bound may pull the profile up to the cap); None otherwise (the target
+    speed: longer paths only spread the candidates' points and the lateral knots thinner)."""
+    cap = speed_cap(problem)
+    if cap <= target_speed(problem) or not followers(ref, moving_obstacles(problem), start_s):
+        return None
+    return cap
 
 
 def speed_limit(

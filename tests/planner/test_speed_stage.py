@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from traffic import car
 
+from planner.candidates import path_length
 from planner.pipeline import plan
 from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import build_reference
@@ -16,6 +18,7 @@ from planner.speed import (
     escape,
     keep_speed,
     profile_grid,
+    reach_speed,
     speed_cap,
     speed_limit,
     target_speed,
@@ -170,3 +173,21 @@ def test_keeping_the_speed_slows_for_a_curve_ahead_and_speeds_up_after_it() -> N
     assert profile.v.min() < 6.0 and profile.v[-1] == pytest.approx(14.0, abs=1e-3)
     straight_on = keep_speed(frenet_path(ref, s, 0.0 * s, 0.0 * s, 0.0 * s), problem, 160, 0.1)
     np.testing.assert_allclose(straight_on.v, 14.0)  # nothing to slow for: the speed kept
+
+
+def test_the_paths_reach_the_speed_limit_only_with_a_vehicle_behind() -> None:
+    """Above the target the profile speeds up only to keep ahead of a vehicle from behind: only then must
+    the candidates' paths be long enough for the speed limit (longer paths spread their points thinner)."""
+    ref = build_reference(ROAD)
+    ego = Ego(30.0, 0.0, 0.0, 8.0)
+    limited = Options(target_speed=8.0, speed_limit=16.0)
+    alone = PlanningProblem(ROAD, Lane(3.5, 3.5), ego, options=limited)
+    behind = PlanningProblem(ROAD, Lane(3.5, 3.5), ego, (car("behind", 10.0, 14.0),), options=limited)
+    ahead = PlanningProblem(ROAD, Lane(3.5, 3.5), ego, (car("ahead", 60.0, 14.0),), options=limited)
+    capped = PlanningProblem(ROAD, Lane(3.5, 3.5), ego, behind.obstacles, options=Options(target_speed=8.0))
+    start = 30.0
+    assert reach_speed(ref, alone, start) is None and reach_speed(ref, ahead, start) is None
+    assert reach_speed(ref, capped, start) is None  # no speed limit: the target is the cap
+    assert reach_speed(ref, behind, start) == 16.0
+    vehicle, options = Vehicle(), limited
+    assert path_length(ego, vehicle, options, 16.0) > path_length(ego, vehicle, options) + 8.0 * (16.0 - 8.0)
