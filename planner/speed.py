@@ -11,7 +11,8 @@ length ``σ(t)`` [m] along the path within:
   ``stop_gap`` before the reference's end, or the path's end;
 * the space-time bounds of the moving obstacles (:mod:`planner.st_bounds`);
 * acceleration within the vehicle's limits and ``|jerk| ≤ jerk`` [m/s³] (``emergency_jerk`` before a
-  block, or when the comfortable jerk needs more than ``slack`` to keep the limits).
+  block, when the comfortable jerk needs more than ``slack`` to keep the limits, or when braking later
+  and harder keeps ahead of a follower bound by more than ``slack`` within the same limits).
 
 The cost pulls the speed towards the target (:func:`target_speed`), which may lie below the cap: then only
 what the cost weighs against the target — the follower bound, or a caller's bound such as a goal's —
@@ -257,6 +258,14 @@ def speed_stage(
         # before comfort, brake as hard as the emergency jerk allows. (Not for a follower bound alone:
         # more jerk hardly speeds up sooner.)
         speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config)
+    elif speed.follower_violation > cfg.slack and jerk < cfg.emergency_jerk:
+        # Behind the follower bound with the comfortable jerk: braking later, as hard as the emergency
+        # jerk allows, keeps ahead of it longer where a curve or a leader ahead makes the speed drop.
+        harder = _solve(solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config)
+        if harder.info.usable and harder.follower_violation < speed.follower_violation - cfg.slack and max(
+            harder.speed_violation, harder.position_violation
+        ) <= max(speed.speed_violation, speed.position_violation, cfg.slack):
+            speed = harder
     profile = Profile.optimised(speed)
     if speed.info.usable and speed.position_violation > cfg.position_slack:
         # Past a stop or a space-time bound (the solver's limits are soft): full braking keeps every

@@ -3,17 +3,24 @@ the trajectory samples while keeping the SQP's own account of its solve."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+from typing import Any
+
 import numpy as np
 import pytest
+from scenario_roads import Road, arc_piece, follow_prediction, straight_piece
 from traffic import car
 
+from planner import pipeline
 from planner.candidates import path_length
+from planner.config import DEFAULT_CONFIG
 from planner.pipeline import plan
-from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
+from planner.problem import DynamicObstacle, Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import build_reference
 from planner.roads import straight
 from planner.speed import (
     ProfileKind,
+    SpeedPlan,
     braking,
     escape,
     keep_speed,
@@ -21,6 +28,7 @@ from planner.speed import (
     reach_speed,
     speed_cap,
     speed_limit,
+    speed_stage,
     target_speed,
 )
 from planner.trajectory import frenet_path
@@ -191,3 +199,32 @@ def test_the_paths_reach_the_speed_limit_only_with_a_vehicle_behind() -> None:
     assert reach_speed(ref, behind, start) == 16.0
     vehicle, options = Vehicle(), limited
     assert path_length(ego, vehicle, options, 16.0) > path_length(ego, vehicle, options) + 8.0 * (16.0 - 8.0)
+
+
+def test_behind_a_follower_bound_the_profile_brakes_later_with_the_emergency_jerk(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """At 10 m/s, 15 m before a 25 m curve (about 8 m/s at 3 m/s²), a car 8 m behind at 10 m/s: the
+    comfortable jerk starts braking at once and the car behind closes in; braking later and harder (the
+    emergency jerk) keeps further ahead of it, within the same limits."""
+    road = Road([straight_piece(100.0), arc_piece(25.0, np.pi / 2), straight_piece(80.0)])
+    x, y, heading = road.pose(85.0)
+    behind = DynamicObstacle("behind", 4.5, 1.8, follow_prediction(road, 85.0 - 4.5 - 8.0, 10.0, 8.0))
+    ego = Ego(x, y, heading, 10.0)
+    problem = PlanningProblem(
+        road.polyline(1.0), Lane(3.5, 3.5), ego, (behind,), Vehicle(), Options(target_speed=10.0)
+    )
+    comfortable = replace(DEFAULT_CONFIG, speed=replace(DEFAULT_CONFIG.speed, emergency_jerk=8.0 + 1e-9))
+    stages: list[SpeedPlan] = []
+
+    def kept(*args: Any, **kwargs: Any) -> SpeedPlan:
+        stages.append(speed_stage(*args, **kwargs))
+        return stages[-1]
+
+    monkeypatch.setattr(pipeline, "speed_stage", kept)
+    harder, soft = plan(problem), plan(problem, comfortable)
+    assert len(stages) == 2
+    later, early = stages[0].solved, stages[1].solved
+    assert later.follower_violation < early.follower_violation - 0.05
+    assert later.speed_violation <= max(early.speed_violation, 0.05)
+    assert harder.trajectory.v[10] > soft.trajectory.v[10]  # it keeps its speed longer
