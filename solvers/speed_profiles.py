@@ -18,7 +18,7 @@ and one partial step, and changes the speed by::
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -137,11 +137,49 @@ def _brakes_within(problem: SpeedProblem, s: float, v: float, a: float) -> bool:
     return bool(np.all(v_k[moving] <= limit + _LIMIT_TOL))
 
 
+@dataclass(frozen=True)
+class _Envelope:
+    """A quick sufficient test for :func:`_brakes_within`, in two look-ups.
+
+    Full braking from ``(s, v, a)`` is no faster than ``v̂ = v + a₊ T`` while its ramp lasts (``T = (a −
+    a_min)/j_max`` plus a step) and covers at most ``r = s + v̂ T`` meanwhile; after it ``v(s′)² ≤ v̂² −
+    2b(s′ − r)`` (``b = −a_min``). So it keeps ``v_lim`` if ``v̂`` is at most the limit's least over
+    ``[s, r]`` and ``v̂² + 2b r`` at most ``v_lim(s′)² + 2b s′`` for every ``s′ ≥ r``: on each segment of
+    the limit at least ``min(v_i, v_i+1)² + 2b s_i`` (``energy``, its suffix minima; beyond the last knot
+    ``v_M² + 2b s_M``)."""
+
+    problem: SpeedProblem
+    energy: FloatArray
+
+    @classmethod
+    def of(cls, problem: SpeedProblem) -> _Envelope:
+        s, v, b = problem.limit_s, problem.limit_v, -problem.a_min
+        lowest = np.minimum(v, np.append(v[1:], v[-1]))
+        return cls(problem, np.minimum.accumulate((lowest**2 + 2.0 * b * s)[::-1])[::-1])
+
+    def keeps(self, s: float, v: float, a: float) -> bool:
+        """Whether full braking from ``(s, v, a)`` surely keeps the limit (False: perhaps not)."""
+        p = self.problem
+        ramp = max(a - p.a_min, 0.0) / p.jerk_max + p.dt
+        peak = v + max(a, 0.0) * ramp
+        reach = s + max(peak, 0.0) * ramp
+        limit_s, limit_v = p.limit_s, p.limit_v
+        lo, hi = np.searchsorted(limit_s, (s, reach), side="right")
+        ends = np.interp((s, reach), limit_s, limit_v)
+        least = min(float(ends.min()), float(limit_v[lo:hi].min()) if hi > lo else math.inf)
+        if peak > least + _LIMIT_TOL:
+            return False
+        ahead = min(float(ends[1]), float(limit_v[min(hi, limit_v.size - 1)])) ** 2 + 2.0 * -p.a_min * reach
+        beyond = float(self.energy[hi]) if hi < self.energy.size else math.inf
+        return peak**2 + 2.0 * -p.a_min * reach <= min(ahead, beyond) + _LIMIT_TOL
+
+
 def limited_profile(problem: SpeedProblem, v_keep: float) -> FloatArray:
     """Jerks that drive at ``v_keep`` [m/s] within the path's limit ``v_lim`` (``limit_s``, ``limit_v``).
 
     Each step takes the jerk that steers towards ``v_keep`` (:func:`_steer`) when full braking from the
-    state after it still keeps ``v ≤ v_lim`` everywhere ahead until it stops (:func:`_brakes_within`);
+    state after it still keeps ``v ≤ v_lim`` everywhere ahead until it stops (:func:`_brakes_within`, after
+    the quick sufficient test of :class:`_Envelope`);
     otherwise the next step of full braking (:func:`braking_profile`) from the state before it, whose own
     braking was checked the step before. So the limit is kept at the knots wherever full braking from the
     initial state keeps it, and the profile slows before a dip in the limit only as late as it must and
@@ -155,6 +193,7 @@ def limited_profile(problem: SpeedProblem, v_keep: float) -> FloatArray:
     jerk = np.zeros(n)
     s, v, a = problem.s0, problem.v0, problem.a0
     brake: list[float] = []  # the rest of the full stop being followed, if any
+    envelope = _Envelope.of(problem)
 
     def after(s: float, v: float, a: float, j: float) -> tuple[float, float, float]:
         return s + v * dt + a * dt**2 / 2 + j * dt**3 / 6, v + a * dt + j * dt**2 / 2, a + j * dt
@@ -162,7 +201,8 @@ def limited_profile(problem: SpeedProblem, v_keep: float) -> FloatArray:
     for k in range(n):
         j = _steer(v, a, v_keep, dt, jmax, min(a_lo, a), max(a_hi, a))
         nxt = after(s, v, a, j)
-        if nxt[1] >= 0.0 and _spare_speed(nxt[1], nxt[2], dt, jmax) >= 0.0 and _brakes_within(problem, *nxt):
+        releasable = nxt[1] >= 0.0 and _spare_speed(nxt[1], nxt[2], dt, jmax) >= 0.0
+        if releasable and (envelope.keeps(*nxt) or _brakes_within(problem, *nxt)):
             brake = []
         else:
             if not brake:

@@ -11,7 +11,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from solvers.speed_problem import SpeedProblem, integrate_jerk
-from solvers.speed_profiles import braking_profile, cruise_profile, limited_profile
+from solvers.speed_profiles import _brakes_within, _Envelope, braking_profile, cruise_profile, limited_profile
 from tests.solvers.speed_cases import make_problem
 
 
@@ -114,3 +114,21 @@ def test_limited_profile_keeps_the_limit_wherever_full_braking_can(
     assert np.all(v <= max(v_keep, v0 + max(a0, 0.0) ** 2 / 60.0) + 0.05)
     if np.all(_within(problem, s_b, v_b)):
         assert np.all(_within(problem, s, v))
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    limit_v=st.lists(st.floats(0.5, 30.0), min_size=2, max_size=12),
+    spacing=st.floats(0.5, 20.0),
+    s=st.floats(0.0, 200.0),
+    v=st.floats(0.0, 30.0),
+    a=st.floats(-6.0, 2.5),
+)
+def test_the_quick_braking_test_never_passes_a_state_whose_braking_breaks_the_limit(
+    limit_v: list[float], spacing: float, s: float, v: float, a: float
+) -> None:
+    problem = make_problem(
+        limit_s=spacing * np.arange(len(limit_v)), limit_v=limit_v, jerk_max=30.0, a_min=-6.0, a_max=2.5
+    )
+    if _Envelope.of(problem).keeps(s, v, a):
+        assert _brakes_within(problem, s, v, a)
