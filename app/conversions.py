@@ -36,6 +36,7 @@ from planner import goal as pg
 from planner import problem as pp
 from planner.candidates import CandidateSet
 from planner.ego import EgoFrenet
+from planner.follower import FollowerReason
 from planner.frenet import FrenetPoints
 from planner.goal import GoalReason, GoalReport, GoalStatus
 from planner.reference import ReferenceLine
@@ -253,7 +254,8 @@ def plan_data(result: PlanResult, request_ms: Mapping[str, float]) -> dict[str, 
     :class:`~app.models.plan.PlanResponse` (plain lists and dicts built from the arrays, ready for
     ``pydantic_core.to_json``; each point's ``steering_angle`` only for a car; ``candidates`` only when
     the planner returned them; every stage of
-    :data:`~app.models.plan.STAGES`, 0 for one that did not run), with ``request_ms``, the
+    :data:`~app.models.plan.STAGES`, 0 for one that did not run; ``follower`` only when one still hits
+    the trajectory), with ``request_ms``, the
     request's budget and how long it waited and ran (:class:`~app.models.plan.RequestTiming`).
 
     A non-finite number or an unknown solver status is a bug and raises ``ValueError``.
@@ -298,6 +300,13 @@ def plan_data(result: PlanResult, request_ms: Mapping[str, float]) -> dict[str, 
     }
     if diag.goal is not None:
         data["diagnostics"]["goal"] = goal_data(diag.goal)
+    if (follower := diag.follower) is not None:
+        _require_finite("the diagnostics", follower.t)
+        data["diagnostics"]["follower"] = {
+            "obstacle_id": str(follower.obstacle_id),
+            "t": float(follower.t),
+            "reason": FollowerReason(follower.reason).value,
+        }
     return data
 
 

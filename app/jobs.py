@@ -54,6 +54,7 @@ from planner.ego import start_state
 from planner.frenet import to_cartesian, to_frenet
 from planner.pipeline import plan
 from planner.reference import build_reference
+from planner.speed import reach_speed
 
 #: the most arrays and objects of a planning request: the reference line and its points, four width
 #: lists (lane and road), the obstacles and each one's polygon, centre or prediction, every vertex,
@@ -123,7 +124,10 @@ def candidates_job(job: Job) -> Outcome:
     problem = to_problem(request)
     ref = build_reference(problem.reference_line)
     start = start_state(ref, problem)  # the start /v1/plan uses, so the candidates are the plan's
-    cs = generate_candidates(ref, problem.lane, problem.ego, problem.vehicle, problem.options, start=start)
+    fastest = reach_speed(ref, problem, start.s)  # as long as the plan's
+    cs = generate_candidates(
+        ref, problem.lane, problem.ego, problem.vehicle, problem.options, start=start, reach_speed=fastest
+    )
     return Outcome(pydantic_core.to_json(candidates_data(cs, ref, start)))
 
 

@@ -91,11 +91,12 @@ class CandidateSet:
         return self.s[i, keep], self.d[i, keep], self.xy[i, keep]
 
 
-def path_length(ego: Ego, vehicle: Vehicle, options: Options) -> float:
-    """Arc length the candidates cover [m]: the distance at the faster of current and target speed
-    over the horizon and then a gentle braking distance from it, at least ``min_path_length``."""
+def path_length(ego: Ego, vehicle: Vehicle, options: Options, reach_speed: float | None = None) -> float:
+    """Arc length the candidates cover [m]: the distance at the faster of the current speed and the
+    target speed (``reach_speed`` [m/s] instead, when given: a plan that may drive faster) over the
+    horizon and then a gentle braking distance from it, at least ``min_path_length``."""
     target = vehicle.max_speed if options.target_speed is None else options.target_speed
-    fastest = max(ego.speed, target)
+    fastest = max(ego.speed, target if reach_speed is None else reach_speed)
     # the speed profile keeps room to stop at half the vehicle's deceleration beyond its horizon
     braking = braking_distance(fastest, 0.5 * vehicle.max_deceleration) + fastest * BRAKE_DELAY
     return min(max(options.min_path_length, options.horizon_time * fastest + braking), MAX_PATH_LENGTH)
@@ -148,8 +149,11 @@ def generate_candidates(
     options: Options,
     *,
     start: EgoFrenet | None = None,
+    reach_speed: float | None = None,
 ) -> CandidateSet:
-    """Generate ``options.num_candidates`` candidates of ``options.num_points`` points from ``start``.
+    """Generate ``options.num_candidates`` candidates of ``options.num_points`` points from ``start``,
+    as long as :func:`path_length` (``reach_speed``: see there; a plan passes
+    :func:`planner.speed.reach_speed`).
 
     A plan starts them from :func:`planner.ego.start_state`; without ``start``, the ego's state is
     :func:`planner.ego.ego_frenet`'s, without the plan's curvature clip. Raises
@@ -163,7 +167,7 @@ def generate_candidates(
     # (a weak brake's distance would spread the candidates' points thin across the road's curves).
     braking = braking_distance(ego.speed, vehicle.max_deceleration) + ego.speed * BRAKE_DELAY
     ahead = min(braking, horizon_reach(ego, vehicle, options)) + vehicle.length
-    s_end = min(start.s + path_length(ego, vehicle, options), max(ref.length, start.s + ahead))
+    s_end = min(start.s + path_length(ego, vehicle, options, reach_speed), max(ref.length, start.s + ahead))
     if ref.length - start.s < 1e-3:
         raise InvalidInputError("the ego is at or past the end of the reference line", field="ego")
     n, p = options.num_candidates, options.num_points

@@ -2,56 +2,87 @@
 
 Full braking within the emergency jerk is tried along the optimised path, then along the chosen
 candidate, then straight on at the ego's offset (no steering while it stops); the first braking
-trajectory that passes every check is taken, else the one that breaks the fewest.
+trajectory that passes every check is taken, else the least severe (:func:`severity`).
 
-Braking into a vehicle coming from behind is never better than keeping the speed: when a braking
-trajectory is hit from behind (a :attr:`~planner.validation.ViolationKind.HITS_MOVING_OBSTACLE` of one
-of :func:`planner.st_bounds.followers`), the planned profile (which may have slowed for a leader's
-headway only) and keeping the speed are weighed too. The first that passes every check is taken; else
-the least severe (:func:`severity`), on a tie these before braking (a harder stop gives the follower
-less time).
+Braking into a vehicle coming from behind is never better than driving on: when a braking trajectory is hit
+from behind (a :attr:`~planner.validation.ViolationKind.HITS_MOVING_OBSTACLE` of one of
+:func:`planner.st_bounds.followers`), three more profiles along the best path are weighed, in this order:
+the planned one (which may have slowed for a leader's headway only), keeping the speed
+(:func:`planner.speed.keep_speed`: slowing only where the path's curvature demands it) and getting away as
+fast as the limits allow (:func:`planner.speed.escape`, up to the speed cap). The first that passes every
+check is taken; else the least severe, on a tie the one a vehicle from behind hits later, and then the
+earlier (so these before braking: a harder stop gives the follower less time). A follower that still hits
+the answer is named with the reason it is not escaped (:func:`planner.follower.unescaped`).
+
+Severity (:func:`severity`) ranks what a trajectory breaks, never its messages: first numbers that
+disagree (:data:`~planner.validation.CONSISTENCY`: no motion at all), then the vehicle's own limits
+(:data:`~planner.validation.LIMITS`: a trajectory outside them cannot be driven as planned, so it is no
+option while one within them exists), then hits of anything but a vehicle from behind, then hits from
+behind, then the other checks (the lane, the road's end).
 """
 
 from __future__ import annotations
 
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 
 from shapely.geometry.base import BaseGeometry
 
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.ego import EgoFrenet
+from planner.follower import UnescapedFollower, first_hit_from_behind, from_behind, unescaped
 from planner.lateral import held_offset, knots
 from planner.problem import PlanningProblem
 from planner.reference import ReferenceLine
-from planner.speed import Profile, ProfileKind, braking, profile_grid
+from planner.speed import Profile, ProfileKind, braking, escape, keep_speed, profile_grid
 from planner.st_bounds import followers, moving_obstacles
 from planner.trajectory import Path, Trajectory
-from planner.validation import HITS, Violation, ViolationKind, trajectory_violations
+from planner.validation import CONSISTENCY, HITS, LIMITS, Violation, trajectory_violations
 from solvers.speed_problem import SpeedResult
 
 
 @dataclass(frozen=True)
 class Fallback:
-    """The fallback's answer: the trajectory, what it still breaks, why (the message) and its profile."""
+    """The fallback's answer: the trajectory, what it still breaks, why (the message), its profile and
+    the vehicle from behind that still hits it, if any (with the reason)."""
 
     trajectory: Trajectory
     violations: tuple[Violation, ...]
     message: str
     profile: ProfileKind
+    follower: UnescapedFollower | None = None
 
 
-def severity(bad: Collection[Violation], rear: Collection[str]) -> tuple[int, int, int]:
-    """How bad a trajectory's violations ``bad`` are, to compare fallbacks: hits of obstacles other than
-    the vehicles behind (ids ``rear``), then hits from behind, then the other checks (curvature, lane, …,
-    which do not hit anything by themselves)."""
+@dataclass(frozen=True)
+class _Option:
+    """One profile along one path, weighed: what it is called in the message, the profile, the
+    trajectory and what it breaks."""
+
+    label: str
+    profile: Profile
+    trajectory: Trajectory
+    violations: list[Violation]
+
+
+def severity(bad: Collection[Violation], rear: Collection[str]) -> tuple[int, int, int, int, int]:
+    """How bad a trajectory's violations ``bad`` are, to compare fallbacks (smaller is better): numbers
+    that disagree (:data:`~planner.validation.CONSISTENCY`), the vehicle's limits broken
+    (:data:`~planner.validation.LIMITS`), hits of obstacles other than the vehicles behind (ids
+    ``rear``), hits from behind, then the other checks (the lane, the road's end, which do not hit
+    anything by themselves)."""
+    rear_ids = set(rear)
+    wrong = sum(v.kind in CONSISTENCY for v in bad)
+    limits = sum(v.kind in LIMITS for v in bad)
     hits = [v for v in bad if v.kind in HITS]
-    from_behind = sum(_from_behind(v, rear) for v in hits)
-    return len(hits) - from_behind, from_behind, len(bad) - len(hits)
+    behind = sum(from_behind(v, rear_ids) for v in hits)
+    return wrong, limits, len(hits) - behind, behind, len(bad) - len(hits) - limits - wrong
 
 
-def _from_behind(violation: Violation, rear: Collection[str]) -> bool:
-    return violation.kind is ViolationKind.HITS_MOVING_OBSTACLE and violation.obstacle_id in rear
+def _rank(bad: list[Violation], rear: set[str]) -> tuple[float, ...]:
+    """:func:`severity`, then the later a vehicle from behind first hits, the better (it is braked into
+    less)."""
+    hit = first_hit_from_behind(bad, rear)
+    return (*severity(bad, rear), -(hit.t or 0.0) if hit is not None else 0.0)
 
 
 def fallback(
@@ -68,44 +99,51 @@ def fallback(
     """The fallback for ``reason``, along ``path`` (the best path known), the chosen ``candidate`` and
     the ego's offset; ``planned`` is the SQP's profile along ``path``, weighed when braking is hit from
     behind (if it is a solution). ``static`` are the static obstacles' outlines."""
-    options = problem.options
-    steps, dt = profile_grid(options, config.speed)
+    steps, dt = profile_grid(problem.options, config.speed)
+
+    def weigh(label: str, profile: Profile, along: Path) -> _Option:
+        traj = profile.sample(along, problem.options.dt, ref, problem.vehicle)
+        return _Option(label, profile, traj, trajectory_violations(ref, problem, traj, static))
+
     hold = held_offset(ref, knots(ref, start, float(candidate.s[-1]), config.lateral), start.d)
-    tried: list[tuple[Trajectory, list[Violation]]] = []
+    tried: list[_Option] = []
     for option in _distinct(path, candidate, hold):
-        profile = braking(option, problem, steps, dt, config.speed)
-        traj = profile.sample(option, options.dt, ref, problem.vehicle)
-        bad = trajectory_violations(ref, problem, traj, static)
-        tried.append((traj, bad))
-        if not bad:
-            break
-    traj, bad = min(tried, key=lambda tb: len(tb[1]))
-    if not bad:
-        return Fallback(traj, (), reason, ProfileKind.BRAKING)
-    message = f"{reason}; the braking trajectory still breaks: {bad[0]}"
+        tried.append(weigh("braking", braking(option, problem, steps, dt, config.speed), option))
+        if not tried[-1].violations:
+            return Fallback(tried[-1].trajectory, (), reason, ProfileKind.BRAKING)
     rear = {ob.id for ob in followers(ref, moving_obstacles(problem), start.s)}
-    hit_from_behind = [v for _, b in tried for v in b if _from_behind(v, rear)]
-    if not hit_from_behind:
-        return Fallback(traj, tuple(bad), message, ProfileKind.BRAKING)
-    others: list[tuple[str, Profile]] = []
+    best = min(tried, key=lambda o: severity(o.violations, rear))
+    message = f"{reason}; the braking trajectory still breaks: {best.violations[0]}"
+    hit_from_behind = next((h for o in tried if (h := first_hit_from_behind(o.violations, rear))), None)
+    if hit_from_behind is None:
+        return Fallback(best.trajectory, tuple(best.violations), message, ProfileKind.BRAKING)
+
+    others: list[tuple[str, Callable[[], Profile]]] = []
     if planned is not None and planned.info.usable:
-        others.append(("the planned profile", Profile.optimised(planned)))
-    others.append(("keeping the speed", braking(path, problem, steps, dt, config.speed, keep_speed=True)))
-    weighed: list[tuple[str, Profile | None, Trajectory, list[Violation]]] = []
-    for label, profile in others:
-        alt = profile.sample(path, options.dt, ref, problem.vehicle)
-        alt_bad = trajectory_violations(ref, problem, alt, static)
-        weighed.append((label, profile, alt, alt_bad))
-        if not alt_bad:
+        solved = planned
+        others.append(("the planned profile", lambda: Profile.optimised(solved)))
+    others.append(("keeping the speed", lambda: keep_speed(path, problem, steps, dt, config)))
+    others.append(("speeding up within the limits", lambda: escape(path, problem, steps, dt, config)))
+    weighed: list[_Option] = []
+    for label, make in others:
+        weighed.append(weigh(label, make(), path))
+        if not weighed[-1].violations:
             break
-    weighed += [("braking", None, tr, b) for tr, b in tried]
-    label, chosen, traj, bad = min(weighed, key=lambda c: severity(c[3], rear))
-    if chosen is None:
-        return Fallback(traj, tuple(bad), message, ProfileKind.BRAKING)
-    message = f"{reason}; braking is hit from behind ({hit_from_behind[0]}): {label} instead"
-    if bad:
-        message += f", which still breaks: {bad[0]}"
-    return Fallback(traj, tuple(bad), message, chosen.kind)
+    chosen = min([*weighed, *tried], key=lambda o: _rank(o.violations, rear))
+    if chosen.profile.kind is ProfileKind.BRAKING:
+        message = f"{reason}; the braking trajectory still breaks: {chosen.violations[0]}"
+    else:
+        message = f"{reason}; braking is hit from behind ({hit_from_behind}): {chosen.label} instead"
+        if chosen.violations:
+            message += f", which still breaks: {chosen.violations[0]}"
+    follower = None
+    if (hit := first_hit_from_behind(chosen.violations, rear)) is not None:
+        runaway = next((o for o in weighed if o.profile.kind is ProfileKind.ESCAPE), None)
+        if runaway is None:
+            runaway = weigh("", escape(path, problem, steps, dt, config), path)
+        follower = unescaped(hit, problem, path, runaway.profile, runaway.violations, config)
+        message += f"; {follower.obstacle_id} cannot be escaped: {follower.reason.description}"
+    return Fallback(chosen.trajectory, tuple(chosen.violations), message, chosen.profile.kind, follower)
 
 
 def _distinct(*paths: Path) -> list[Path]:

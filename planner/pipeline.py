@@ -25,6 +25,7 @@ from planner.collision import frenet_boxes
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.ego import EgoFrenet, start_state
 from planner.fallback import fallback
+from planner.follower import UnescapedFollower
 from planner.goal_plan import (
     GoalSetup,
     candidate_cost,
@@ -40,7 +41,7 @@ from planner.problem import PlanningProblem
 from planner.reference import ReferenceLine, build_reference
 from planner.result import NOT_RUN, CandidateStats, PlanDiagnostics, PlanResult, Status
 from planner.selection import choose_candidate
-from planner.speed import Profile, ProfileKind, SpeedPlan, speed_stage
+from planner.speed import Profile, ProfileKind, SpeedPlan, reach_speed, speed_stage
 from planner.st_bounds import static_shapes
 from planner.thread_solvers import thread_solvers
 from planner.timing import StageTimer
@@ -62,8 +63,11 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
         start = start_state(ref, problem, config)
     with timer.stage("candidates"):
         goal = goal_setup(ref, problem, config)
-        cand_options = candidate_options(goal, options)
-        cands = generate_candidates(ref, problem.lane, problem.ego, vehicle, cand_options, start=start)
+        fastest = reach_speed(ref, problem, start.s)
+        cands = generate_candidates(
+            ref, problem.lane, problem.ego, vehicle, candidate_options(goal, options), start=start,
+            reach_speed=fastest,
+        )  # fmt: skip
         static = static_shapes(problem)
         boxes = frenet_boxes(ref, static, reach=corridor_width(problem, config))
         choice = choose_candidate(cands, boxes, problem, config, candidate_cost(goal, cands, problem, config))
@@ -182,7 +186,14 @@ class _Run:
                 reason, path, candidate, self.ref, self.problem, self.start, self.static, planned, self.config
             )
         return self.result(
-            "fallback", out.message, out.trajectory, lateral, speed, out.profile, out.violations
+            "fallback",
+            out.message,
+            out.trajectory,
+            lateral,
+            speed,
+            out.profile,
+            out.violations,
+            follower=out.follower,
         )
 
     def result(
@@ -195,6 +206,7 @@ class _Run:
         profile: ProfileKind,
         violations: tuple[Violation, ...] = (),
         stopped: bool = False,
+        follower: UnescapedFollower | None = None,
     ) -> PlanResult:
         """The answer, what it does with the goal (``stopped``: before a block), its diagnostics timed up
         to now."""
@@ -203,7 +215,8 @@ class _Run:
             report = judge(self.goal, traj, fallback=status == "fallback", stopped=stopped)
         timing = self.timer.timing_ms()
         diag = PlanDiagnostics(
-            self.stats, lateral, speed, timing, self.ref.size, self.knots, self.best, profile, report
+            self.stats, lateral, speed, timing, self.ref.size, self.knots, self.best, profile, report,
+            follower,
         )
         cands = self.cands if self.problem.options.return_candidates else None
         return PlanResult(status, message, traj, cands, diag, violations)

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from planner.candidates import CandidateSet
+from planner.follower import UnescapedFollower
 from planner.goal import GoalReport
 from planner.speed import ProfileKind
 from planner.trajectory import Trajectory
@@ -44,6 +45,8 @@ class PlanDiagnostics:
         chosen_candidate: index of the candidate followed.
         speed_profile: the speed profile the trajectory samples: the SQP's, or an analytic one.
         goal: what the trajectory does with the request's goal (None without one).
+        follower: the vehicle from behind that still hits the trajectory as predicted, and why it is
+            not escaped (:mod:`planner.follower`); None when none does.
     """
 
     candidates: CandidateStats
@@ -55,6 +58,7 @@ class PlanDiagnostics:
     chosen_candidate: int | None
     speed_profile: ProfileKind
     goal: GoalReport | None = None
+    follower: UnescapedFollower | None = None
 
 
 @dataclass(frozen=True)

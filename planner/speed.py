@@ -4,14 +4,19 @@ On ``steps`` knots ``t_k = k·Δt`` over the horizon (``Δt = horizon / steps``,
 configured number and about ``horizon / options.dt``) the SQP (:mod:`solvers.speed`) finds the arc
 length ``σ(t)`` [m] along the path within:
 
-* the speed limit ``v ≤ v_lim(σ)`` [m/s]: the target speed (a cap), the vehicle's, the curvature's
-  ``√(limit_margin · a_lat,max / |κ|)`` (a car's body: :func:`speed_limit`) and a car's steering rate's,
-  each the lowest within ``limit_reach`` either side;
+* the speed limit ``v ≤ v_lim(σ)`` [m/s]: the cap (:func:`speed_cap`: ``options.speed_limit``, else the
+  target speed), the vehicle's, the curvature's ``√(limit_margin · a_lat,max / |κ|)`` (a car's body:
+  :func:`speed_limit`) and a car's steering rate's, each the lowest within ``limit_reach`` either side;
 * a stop ``σ ≤ σ_stop``: ``stop_gap`` before the last free knot of a blocked road, or the front
   ``stop_gap`` before the reference's end, or the path's end;
 * the space-time bounds of the moving obstacles (:mod:`planner.st_bounds`);
 * acceleration within the vehicle's limits and ``|jerk| ≤ jerk`` [m/s³] (``emergency_jerk`` before a
-  block, or when the comfortable jerk needs more than ``slack`` to keep the limits).
+  block, when the comfortable jerk needs more than ``slack`` to keep the limits, or when braking later
+  and harder keeps ahead of a follower bound by more than ``slack`` within the same limits).
+
+The cost pulls the speed towards the target (:func:`target_speed`), which may lie below the cap: then only
+what the cost weighs against the target — the follower bound, or a caller's bound such as a goal's —
+raises the profile above it, never above the cap (the SQP's ``v_target`` and ``limit_v``).
 
 A profile that still ends past a stop or a space-time bound by more than ``position_slack`` [m] is
 replaced by full braking (:func:`braking`): it keeps every ``σ(t)`` as small as the limits allow. The
@@ -38,11 +43,14 @@ from planner.kinematics import steering_rate_speed
 from planner.lateral import LateralPlan
 from planner.problem import Options, PlanningProblem, Vehicle
 from planner.reference import FloatArray, ReferenceLine
-from planner.st_bounds import SpaceTimeBounds, space_time_bounds
+from planner.st_bounds import SpaceTimeBounds, followers, moving_obstacles, space_time_bounds
 from planner.trajectory import Path, Trajectory, body_trajectory, sample
 from solvers.speed_problem import SpeedProblem, SpeedResult, integrate_jerk
-from solvers.speed_profiles import braking_profile, cruise_profile
+from solvers.speed_profiles import braking_profile, cruise_profile, limited_profile
 from solvers.speed_sqp import SpeedSolver
+
+#: a speed this far above the path's limit [m/s] counts as within it (rounding)
+_LIMIT_TOL = 1e-6
 
 
 class ProfileKind(StrEnum):
@@ -52,9 +60,13 @@ class ProfileKind(StrEnum):
     OPTIMISED = "optimised"
     #: full braking within the emergency jerk (analytic: no solve)
     BRAKING = "braking"
-    #: the acceleration released as fast as the emergency jerk allows, then the speed kept (analytic;
-    #: a brake that cannot be released before standstill stops instead)
+    #: the acceleration released as fast as the emergency jerk allows, then the speed kept, slowing
+    #: only where the path's curvature (or a car's steering rate) demands it (analytic; a brake that
+    #: cannot be released before standstill stops instead)
     KEEP_SPEED = "keep_speed"
+    #: the fastest within the limits: towards the speed cap as fast as the vehicle's acceleration and
+    #: the emergency jerk allow, slowing only where the path's limit demands it (analytic)
+    ESCAPE = "escape"
 
 
 @dataclass(frozen=True)
@@ -123,18 +135,39 @@ def profile_grid(options: Options, config: SpeedConfig = DEFAULT_CONFIG.speed) -
 
 
 def target_speed(problem: PlanningProblem) -> float:
-    """The speed the profile aims at [m/s]: the options' target within the vehicle's limit."""
-    v_max = problem.vehicle.max_speed
-    target = problem.options.target_speed
-    return v_max if target is None else min(target, v_max)
+    """The speed the profile cruises at [m/s]: the options' target (without one, the speed limit, else the
+    vehicle's max speed) within the vehicle's max speed."""
+    options = problem.options
+    target = options.target_speed
+    if target is None:
+        target = problem.vehicle.max_speed if options.speed_limit is None else options.speed_limit
+    return min(target, problem.vehicle.max_speed)
+
+
+def speed_cap(problem: PlanningProblem) -> float:
+    """The fastest the profile may drive [m/s]: ``options.speed_limit`` within the vehicle's max speed (at
+    least the target), else the target speed (:func:`target_speed`)."""
+    limit = problem.options.speed_limit
+    target = target_speed(problem)
+    return target if limit is None else max(min(limit, problem.vehicle.max_speed), target)
+
+
+def reach_speed(ref: ReferenceLine, problem: PlanningProblem, start_s: float) -> float | None:
+    """How fast the candidates' paths must let the plan drive [m/s]: the speed cap when it lies above
+    the target and a vehicle comes from behind (:func:`planner.st_bounds.followers` of the ego at
+    ``start_s`` [m]: the follower bound may pull the profile up to the cap); None otherwise (the target
+    speed: longer paths only spread the candidates' points and the lateral knots thinner)."""
+    cap = speed_cap(problem)
+    if cap <= target_speed(problem) or not followers(ref, moving_obstacles(problem), start_s):
+        return None
+    return cap
 
 
 def speed_limit(
     path: Path, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG, cap: float | None = None
 ) -> FloatArray:
-    """The speed profile's limit along ``path`` [m/s] at its knots: the target speed (or ``cap`` [m/s]
-    when given: a goal's), within the vehicle's, the curvature's and, for a car with a steering-rate
-    limit, the steering rate's (the target is a cap: a faster vehicle behind does not raise it).
+    """The speed profile's limit along ``path`` [m/s] at its knots: ``cap`` (default :func:`speed_cap`),
+    within the curvature's and, for a car with a steering-rate limit, the steering rate's.
 
     The curvature's: ``v² |κ| √(1 + (l_r κ)²) ≤ limit_margin · a_lat,max``, the lateral acceleration of the
     body's centre (:func:`planner.kinematics.lateral_acceleration`; ``v² |κ|`` for the point model). The
@@ -148,7 +181,7 @@ def speed_limit(
         curvature = curvature * np.sqrt(1.0 + (vehicle.rear_offset * path.curvature) ** 2)
     with np.errstate(divide="ignore"):
         lateral = np.sqrt(config.limit_margin * a_lat / curvature)
-    limit = np.minimum(target_speed(problem) if cap is None else cap, lateral)
+    limit = np.minimum(speed_cap(problem) if cap is None else cap, lateral)
     steering = steering_rate_speed(path.sigma, path.curvature, vehicle, config.speed.steering_rate_share)
     if steering is not None:
         limit = np.minimum(limit, steering)
@@ -224,7 +257,9 @@ def _solve(
     if aim is None:
         limit, v_target = speed_limit(path, problem, config), target_speed(problem)
     else:
-        limit, v_target = aim.limited(speed_limit(path, problem, config, aim.cap)), aim.v_target
+        # a vehicle from behind may pull the profile up to the speed cap whatever the goal's own cap
+        cap = max(aim.cap, speed_cap(problem))
+        limit, v_target = aim.limited(speed_limit(path, problem, config, cap)), aim.v_target
     sp = _speed_problem(
         path,
         problem,
@@ -267,6 +302,14 @@ def speed_stage(
         # before comfort, brake as hard as the emergency jerk allows. (Not for a follower bound alone:
         # more jerk hardly speeds up sooner.)
         speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config, aim)
+    elif speed.follower_violation > cfg.slack and jerk < cfg.emergency_jerk:
+        # Behind the follower bound with the comfortable jerk: braking later, as hard as the emergency
+        # jerk allows, keeps ahead of it longer where a curve or a leader ahead makes the speed drop.
+        harder = _solve(solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config, aim)
+        if harder.info.usable and harder.follower_violation < speed.follower_violation - cfg.slack and max(
+            harder.speed_violation, harder.position_violation
+        ) <= max(speed.speed_violation, speed.position_violation, cfg.slack):
+            speed = harder
     profile = Profile.optimised(speed)
     if speed.info.usable and speed.position_violation > cfg.position_slack:
         # Past a stop or a space-time bound (the solver's limits are soft): full braking keeps every
@@ -281,14 +324,44 @@ def braking(
     steps: int,
     dt: float,
     config: SpeedConfig = DEFAULT_CONFIG.speed,
-    keep_speed: bool = False,
 ) -> Profile:
-    """Full braking within the emergency jerk along ``path`` (the fallback's speed profile); with
-    ``keep_speed``, the acceleration released as fast and the speed kept instead (the fallback's
-    alternative when braking is hit from behind). Analytic: nothing is solved."""
+    """Full braking within the emergency jerk along ``path`` (the fallback's speed profile). Analytic:
+    nothing is solved."""
     sp = _speed_problem(path, problem, steps, dt, config.emergency_jerk, np.zeros_like(path.sigma), 0.0)
-    jerk = cruise_profile(sp) if keep_speed else braking_profile(sp)
-    s, vel, a = integrate_jerk(dt, 0.0, sp.v0, sp.a0, jerk)
-    t = np.arange(steps + 1, dtype=np.float64) * dt
-    kind = ProfileKind.KEEP_SPEED if keep_speed else ProfileKind.BRAKING
-    return Profile(kind, t, s, vel, a, jerk)
+    return _analytic(ProfileKind.BRAKING, sp, braking_profile(sp))
+
+
+def keep_speed(
+    path: Path, problem: PlanningProblem, steps: int, dt: float, config: PlannerConfig = DEFAULT_CONFIG
+) -> Profile:
+    """The acceleration released within the emergency jerk and the speed kept along ``path`` (the
+    fallback's alternative when braking is hit from behind), within the path's limit below the vehicle's
+    max speed (:func:`speed_limit`): where keeping the speed would break it, the speed after the release
+    is driven within it (:func:`solvers.speed_profiles.limited_profile`). Analytic."""
+    limit = speed_limit(path, problem, config, cap=problem.vehicle.max_speed)
+    sp = _speed_problem(path, problem, steps, dt, config.speed.emergency_jerk, limit, 0.0)
+    jerk = cruise_profile(sp)
+    s, v, _ = integrate_jerk(dt, 0.0, sp.v0, sp.a0, jerk)
+    if np.any(v > np.interp(s, sp.limit_s, sp.limit_v) + _LIMIT_TOL):
+        jerk = limited_profile(sp, float(v[-1]))
+    return _analytic(ProfileKind.KEEP_SPEED, sp, jerk)
+
+
+def escape(
+    path: Path, problem: PlanningProblem, steps: int, dt: float, config: PlannerConfig = DEFAULT_CONFIG
+) -> Profile:
+    """The fastest profile along ``path`` within the limits: towards the speed cap (:func:`speed_cap`; the
+    ego's speed where that is faster: it does not slow down for the cap) as fast as the vehicle's
+    acceleration and the emergency jerk allow, within the path's limit (:func:`speed_limit`;
+    :func:`solvers.speed_profiles.limited_profile`). How far ahead of a vehicle from behind the limits let
+    the vehicle get (the fallback's last alternative to braking into it). Analytic."""
+    cap = max(speed_cap(problem), min(problem.ego.speed, problem.vehicle.max_speed))
+    limit = speed_limit(path, problem, config, cap=cap)
+    sp = _speed_problem(path, problem, steps, dt, config.speed.emergency_jerk, limit, cap)
+    return _analytic(ProfileKind.ESCAPE, sp, limited_profile(sp, cap))
+
+
+def _analytic(kind: ProfileKind, sp: SpeedProblem, jerk: FloatArray) -> Profile:
+    """The profile of the jerks ``jerk`` from ``sp``'s initial state on its grid."""
+    s, vel, a = integrate_jerk(sp.dt, 0.0, sp.v0, sp.a0, jerk)
+    return Profile(kind, sp.t, s, vel, a, jerk)

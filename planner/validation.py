@@ -115,6 +115,32 @@ class ViolationKind(StrEnum):
 
 #: the kinds that are collisions; the others break a limit without hitting anything by themselves
 HITS = frozenset({ViolationKind.HITS_OBSTACLE, ViolationKind.HITS_MOVING_OBSTACLE})
+#: the kinds whose numbers disagree with each other or with a motion along the road: such a trajectory
+#: is no motion at all (not a drivable one, nor one that stays on the reference's side of its curves)
+CONSISTENCY = frozenset(
+    {
+        ViolationKind.START,
+        ViolationKind.KAPPA_D,
+        ViolationKind.STEP,
+        ViolationKind.S_DECREASES,
+        ViolationKind.SELF_INTERSECTS,
+        ViolationKind.FRENET,
+        ViolationKind.HEADING,
+        ViolationKind.TURN,
+        ViolationKind.REAR_AXLE_SLIPS,
+    }
+)
+#: the kinds that break the vehicle's own limits: a trajectory with one cannot be driven as planned
+LIMITS = frozenset(
+    {
+        ViolationKind.CURVATURE,
+        ViolationKind.LATERAL_ACCELERATION,
+        ViolationKind.ACCELERATION,
+        ViolationKind.SPEED,
+        ViolationKind.STEERING_ANGLE,
+        ViolationKind.STEERING_RATE,
+    }
+)
 
 
 @dataclass(frozen=True)

@@ -1,11 +1,13 @@
-r"""Analytic speed profiles along a path: a full stop and keeping the speed, within the jerk limit.
+r"""Analytic speed profiles along a path: a full stop, keeping the speed, and driving at a speed within
+the path's limit, within the jerk limit.
 
-Both return the jerks ``j_k`` [m/s³], ``k = 0 … N−1``, of a :class:`~solvers.speed_problem.SpeedProblem`'s
+Each returns the jerks ``j_k`` [m/s³], ``k = 0 … N−1``, of a :class:`~solvers.speed_problem.SpeedProblem`'s
 grid from its initial state ``(v0, a0)``; :func:`~solvers.speed_problem.integrate_jerk` turns them into
-``(s, v, a)``. They honour only the hard constraints (``|j| ≤ j_max``, the acceleration box, the speed
-floor ``v_lo``) and ignore the soft ones (limit, ``s_stop``, ``s_upper``, ``s_lower``). The SQP returns
-:func:`braking_profile` when it has no solution (and restarts from it after a violation it did not
-need); the planner uses both as fallbacks.
+``(s, v, a)``. :func:`braking_profile` and :func:`cruise_profile` honour only the hard constraints
+(``|j| ≤ j_max``, the acceleration box, the speed floor ``v_lo``) and ignore the soft ones (limit,
+``s_stop``, ``s_upper``, ``s_lower``); :func:`limited_profile` also keeps the limit ``v_lim`` wherever full
+braking could. The SQP returns :func:`braking_profile` when it has no solution (and restarts from it after
+a violation it did not need); the planner uses all three as fallbacks.
 
 The release of an acceleration ``a`` (the fastest return to 0) takes ``⌊|a|/(j_max Δt)⌋`` full-jerk steps
 and one partial step, and changes the speed by::
@@ -16,12 +18,18 @@ and one partial step, and changes the speed by::
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from solvers.speed_problem import FloatArray, SpeedProblem
+from solvers.speed_problem import FloatArray, SpeedProblem, integrate_jerk
 
-__all__ = ["braking_profile", "cruise_profile"]
+__all__ = ["braking_profile", "cruise_profile", "limited_profile"]
+
+#: a speed this far above the limit [m/s] still counts as within it (rounding)
+_LIMIT_TOL = 1e-6
+#: the most steps a braking check simulates (a stop from the largest speeds within any sane limits)
+_MAX_BRAKING_STEPS = 100_000
 
 
 def _release(a: float, dt: float, jmax: float) -> tuple[list[float], float]:
@@ -97,4 +105,111 @@ def cruise_profile(problem: SpeedProblem) -> FloatArray:
     jerk = np.zeros(problem.steps)
     head = jerks[: problem.steps]
     jerk[: len(head)] = head
+    return jerk
+
+
+def _steer(v: float, a: float, v_keep: float, dt: float, jmax: float, a_lo: float, a_hi: float) -> float:
+    """The jerk of one step that brings the speed ``v`` towards ``v_keep`` [m/s] as fast as ``|j| ≤ jmax``
+    and ``a_lo ≤ a ≤ a_hi`` allow without overshooting it.
+
+    The acceleration ``u`` after the step is the one from which the fastest release (speed change
+    ``u|u|/(2 j_max)``) ends at ``v_keep``: ``v + (a + u)Δt/2 + u|u|/(2 j_max) = v_keep``, solved for ``u``
+    on the side of ``e = v_keep − v − aΔt/2``; then ``j = (u − a)/Δt`` within the limits. At
+    ``v = v_keep, a = 0`` it is 0: the speed is kept.
+    """
+    e = v_keep - v - 0.5 * a * dt
+    root = jmax * (math.sqrt(0.25 * dt * dt + 2.0 * abs(e) / jmax) - 0.5 * dt)
+    u = min(max(math.copysign(root, e), a_lo), a_hi)
+    return min(max((u - a) / dt, -jmax), jmax)
+
+
+def _brakes_within(problem: SpeedProblem, s: float, v: float, a: float) -> bool:
+    """Whether full braking from ``(s, v, a)`` (``a → a_min`` at ``jerk_max``, then ``a_min`` to a stop, on
+    the problem's grid) keeps ``v ≤ v_lim(s)`` at every knot until it stops."""
+    dt, jmax, a_min = problem.dt, problem.jerk_max, problem.a_min
+    ramp = max(0, math.ceil((a - a_min) / (jmax * dt) - 1e-9))
+    fastest = v + max(a, 0.0) * ramp * dt
+    steps = min(ramp + math.ceil(max(fastest, 0.0) / (-a_min * dt)) + 2, _MAX_BRAKING_STEPS)
+    accel = np.maximum(a - jmax * dt * np.arange(steps + 1), a_min)
+    s_k, v_k, _ = integrate_jerk(dt, s, v, a, np.diff(accel) / dt)
+    moving = v_k > 0.0
+    limit = np.interp(s_k[moving], problem.limit_s, problem.limit_v)
+    return bool(np.all(v_k[moving] <= limit + _LIMIT_TOL))
+
+
+@dataclass(frozen=True)
+class _Envelope:
+    """A quick sufficient test for :func:`_brakes_within`, in two look-ups.
+
+    Full braking from ``(s, v, a)`` is no faster than ``v̂ = v + a₊ T`` while its ramp lasts (``T = (a −
+    a_min)/j_max`` plus a step) and covers at most ``r = s + v̂ T`` meanwhile; after it ``v(s′)² ≤ v̂² −
+    2b(s′ − r)`` (``b = −a_min``). So it keeps ``v_lim`` if ``v̂`` is at most the limit's least over
+    ``[s, r]`` and ``v̂² + 2b r`` at most ``v_lim(s′)² + 2b s′`` for every ``s′ ≥ r``: on each segment of
+    the limit at least ``min(v_i, v_i+1)² + 2b s_i`` (``energy``, its suffix minima; beyond the last knot
+    ``v_M² + 2b s_M``)."""
+
+    problem: SpeedProblem
+    energy: FloatArray
+
+    @classmethod
+    def of(cls, problem: SpeedProblem) -> _Envelope:
+        s, v, b = problem.limit_s, problem.limit_v, -problem.a_min
+        lowest = np.minimum(v, np.append(v[1:], v[-1]))
+        return cls(problem, np.minimum.accumulate((lowest**2 + 2.0 * b * s)[::-1])[::-1])
+
+    def keeps(self, s: float, v: float, a: float) -> bool:
+        """Whether full braking from ``(s, v, a)`` surely keeps the limit (False: perhaps not)."""
+        p = self.problem
+        ramp = max(a - p.a_min, 0.0) / p.jerk_max + p.dt
+        peak = v + max(a, 0.0) * ramp
+        reach = s + max(peak, 0.0) * ramp
+        limit_s, limit_v = p.limit_s, p.limit_v
+        lo, hi = np.searchsorted(limit_s, (s, reach), side="right")
+        ends = np.interp((s, reach), limit_s, limit_v)
+        least = min(float(ends.min()), float(limit_v[lo:hi].min()) if hi > lo else math.inf)
+        if peak > least + _LIMIT_TOL:
+            return False
+        ahead = min(float(ends[1]), float(limit_v[min(hi, limit_v.size - 1)])) ** 2 + 2.0 * -p.a_min * reach
+        beyond = float(self.energy[hi]) if hi < self.energy.size else math.inf
+        return peak**2 + 2.0 * -p.a_min * reach <= min(ahead, beyond) + _LIMIT_TOL
+
+
+def limited_profile(problem: SpeedProblem, v_keep: float) -> FloatArray:
+    """Jerks that drive at ``v_keep`` [m/s] within the path's limit ``v_lim`` (``limit_s``, ``limit_v``).
+
+    Each step takes the jerk that steers towards ``v_keep`` (:func:`_steer`) when full braking from the
+    state after it still keeps ``v ≤ v_lim`` everywhere ahead until it stops (:func:`_brakes_within`, after
+    the quick sufficient test of :class:`_Envelope`);
+    otherwise the next step of full braking (:func:`braking_profile`) from the state before it, whose own
+    braking was checked the step before. So the limit is kept at the knots wherever full braking from the
+    initial state keeps it, and the profile slows before a dip in the limit only as late as it must and
+    speeds up again after it. From an initial state whose braking cannot keep the limit it brakes fully
+    until it can (best effort). Every step keeps ``|j| ≤ j_max``, the acceleration box and the speed
+    floor (a step towards ``v_keep`` is taken only if releasing the acceleration after it cannot end
+    below standstill); ``s_stop``, ``s_upper`` and ``s_lower`` are ignored.
+    """
+    dt, n, jmax = problem.dt, problem.steps, problem.jerk_max
+    a_lo, a_hi = problem.a_min, problem.a_max
+    jerk = np.zeros(n)
+    s, v, a = problem.s0, problem.v0, problem.a0
+    brake: list[float] = []  # the rest of the full stop being followed, if any
+    envelope = _Envelope.of(problem)
+
+    def after(s: float, v: float, a: float, j: float) -> tuple[float, float, float]:
+        return s + v * dt + a * dt**2 / 2 + j * dt**3 / 6, v + a * dt + j * dt**2 / 2, a + j * dt
+
+    for k in range(n):
+        j = _steer(v, a, v_keep, dt, jmax, min(a_lo, a), max(a_hi, a))
+        nxt = after(s, v, a, j)
+        releasable = nxt[1] >= 0.0 and _spare_speed(nxt[1], nxt[2], dt, jmax) >= 0.0
+        if releasable and (envelope.keeps(*nxt) or _brakes_within(problem, *nxt)):
+            brake = []
+        else:
+            if not brake:
+                here = replace(problem, s0=s, v0=max(v, 0.0), a0=a, steps=n - k)
+                brake = braking_profile(here).tolist()
+            j = brake.pop(0)
+            nxt = after(s, v, a, j)
+        jerk[k] = j
+        s, v, a = nxt
     return jerk

@@ -14,6 +14,7 @@ from pydantic.json_schema import SkipJsonSchema
 
 from app.models.candidates import Candidate
 from app.models.common import ResponseModel
+from planner.follower import FollowerReason
 from planner.goal import GoalReason, GoalStatus
 from planner.result import Status as PlanStatus
 from planner.speed import ProfileKind
@@ -100,9 +101,26 @@ class SpeedSolveInfo(ResponseModel):
     solve_time_ms: float = Field(description="Wall time of the solve [ms].")
     profile: ProfileKind = Field(
         description="The speed profile the trajectory follows: `optimised` (the SQP's), `braking` (full "
-        "braking within the jerk limit: a fallback, or the SQP's profile went past a stop) or "
-        "`keep_speed` (the acceleration released, the speed kept: a fallback hit from behind when "
-        "braking)."
+        "braking within the jerk limit: a fallback, or the SQP's profile went past a stop), "
+        "`keep_speed` (the acceleration released, the speed kept, slowing only where the path's "
+        "curvature demands it: a fallback hit from behind when braking) or `escape` (towards the speed "
+        "limit as fast as the vehicle's acceleration allows, within the path's curvature: a fallback "
+        "hit from behind when braking)."
+    )
+
+
+class Follower(ResponseModel):
+    """A vehicle from behind that still hits the trajectory as predicted, and why no trajectory within
+    the limits keeps ahead of it."""
+
+    obstacle_id: str = Field(description="The vehicle's `id`.")
+    t: float = Field(description="The first time its predicted footprint meets the trajectory's [s].")
+    reason: FollowerReason = Field(
+        description="`acceleration`: it closes faster than the vehicle's acceleration can escape; "
+        "`speed_limit`: faster than any acceleration within `options.speed_limit` (else the target "
+        "speed) can escape; `curvature`: faster than any acceleration within the curvature's speed "
+        "limit ahead can escape; `ahead`: getting away from it would hit something ahead or break "
+        "another check (a stop, a leader)."
     )
 
 
@@ -172,6 +190,11 @@ class PlanDiagnostics(ResponseModel):
     goal: GoalDiagnostics | SkipJsonSchema[None] = Field(
         None,
         description="What the trajectory does with the request's `goal`; present exactly when it has one.",
+    )
+    follower: Follower | SkipJsonSchema[None] = Field(
+        None,
+        description="Present only when a vehicle from behind still hits the trajectory as predicted (a "
+        "`fallback` that did not brake into it): which, when, and why it is not escaped.",
     )
 
 

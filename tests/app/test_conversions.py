@@ -12,6 +12,7 @@ import pytest
 
 from app.conversions import demo_request, from_problem, plan_data, to_problem
 from app.models.plan import STAGES, PlanResponse
+from planner.follower import FollowerReason, UnescapedFollower
 from planner.goal import Goal, GoalCircle, GoalPolygon
 from planner.pipeline import plan
 from planner.problem import Road
@@ -92,3 +93,15 @@ def test_plan_data_refuses_what_would_be_a_wrong_answer(demo_plan: PlanResult) -
     diagnostics = dataclasses.replace(demo_plan.diagnostics, timing_ms=timing)
     with pytest.raises(ValueError, match="the diagnostics hold"):
         plan_data(dataclasses.replace(demo_plan, diagnostics=diagnostics), SPENT)
+
+
+def test_plan_data_names_a_follower_only_when_there_is_one(demo_plan: PlanResult) -> None:
+    assert "follower" not in plan_data(demo_plan, SPENT)["diagnostics"]
+    follower = UnescapedFollower("car 7", 2.5, FollowerReason.SPEED_LIMIT)
+    named = dataclasses.replace(
+        demo_plan, diagnostics=dataclasses.replace(demo_plan.diagnostics, follower=follower)
+    )
+    data = plan_data(named, SPENT)
+    assert data["diagnostics"]["follower"] == {"obstacle_id": "car 7", "t": 2.5, "reason": "speed_limit"}
+    model = PlanResponse.model_validate_json(pydantic_core.to_json(data), strict=True)
+    assert model.model_dump(mode="json", exclude_none=True) == data

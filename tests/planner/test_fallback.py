@@ -8,18 +8,22 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import assume, event, given, note, settings
+from hypothesis import strategies as st
+from scenario_roads import Road, arc_piece, follow_prediction, straight_piece
 from traffic import LANE, ROAD, car, violations
 
 from planner.ego import start_state
 from planner.fallback import fallback, severity
 from planner.pipeline import plan
-from planner.problem import Ego, Options, PlanningProblem, PolygonObstacle, Vehicle
+from planner.problem import DynamicObstacle, Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import build_reference
-from planner.speed import ProfileKind
+from planner.speed import Profile, ProfileKind
 from planner.st_bounds import static_shapes
 from planner.timing import STAGES, TOTAL
 from planner.trajectory import polyline_path
 from planner.validation import Violation, ViolationKind
+from tests.regression.checks import limit_problems
 
 KIND = ViolationKind
 
@@ -28,18 +32,25 @@ def _hit(kind: ViolationKind, obstacle_id: str) -> Violation:
     return Violation(kind, obstacle_id=obstacle_id, t=1.0)
 
 
-def test_a_hit_from_behind_ranks_below_any_other_hit_and_above_a_broken_limit() -> None:
+def test_wrong_numbers_rank_first_then_a_broken_limit_a_hit_ahead_one_from_behind_and_the_rest() -> None:
     rear = {"behind"}
     from_behind = [_hit(KIND.HITS_MOVING_OBSTACLE, "behind")]
     leader = [_hit(KIND.HITS_MOVING_OBSTACLE, "leader")]
     wall = [_hit(KIND.HITS_OBSTACLE, "wall")]
     lane = [Violation(KIND.LANE, t=1.0)]
-    assert severity(from_behind, rear) == (0, 1, 0)
-    assert severity(leader, rear) == severity(wall, rear) == (1, 0, 0)  # only a follower is "behind"
-    assert severity(lane, rear) < severity(from_behind, rear) < severity(wall, rear)
+    lateral = [Violation(KIND.LATERAL_ACCELERATION, t=1.0, value=7.0)]
+    step = [Violation(KIND.STEP, t=1.0)]
+    assert severity(from_behind, rear) == (0, 0, 0, 1, 0)
+    assert severity(leader, rear) == severity(wall, rear) == (0, 0, 1, 0, 0)  # only a follower is "behind"
+    assert severity(lane, rear) < severity(from_behind, rear) < severity(wall, rear) < severity(lateral, rear)
+    assert severity(lateral, rear) < severity(step, rear)
     # a static obstacle with a follower's id is not hit from behind
-    assert severity([_hit(KIND.HITS_OBSTACLE, "behind")], rear) == (1, 0, 0)
-    assert severity([*from_behind, *lane, *wall], rear) == (1, 1, 1)
+    assert severity([_hit(KIND.HITS_OBSTACLE, "behind")], rear) == (0, 0, 1, 0, 0)
+    assert severity([*from_behind, *lane, *wall, *lateral, *step], rear) == (1, 1, 1, 1, 1)
+    for kind in (KIND.CURVATURE, KIND.ACCELERATION, KIND.SPEED, KIND.STEERING_ANGLE, KIND.STEERING_RATE):
+        assert severity([Violation(kind, t=0.0, value=1.0)], rear) == (0, 1, 0, 0, 0)
+    for kind in (KIND.FRENET, KIND.HEADING, KIND.TURN, KIND.REAR_AXLE_SLIPS, KIND.S_DECREASES, KIND.KAPPA_D):
+        assert severity([Violation(kind, t=0.0)], rear) == (1, 0, 0, 0, 0)
 
 
 def _hit_from_behind_when_braking() -> PlanningProblem:
@@ -147,3 +158,97 @@ def test_a_fallback_that_cannot_pass_says_what_its_braking_trajectory_still_brea
     assert [(v.kind, v.obstacle_id) for v in out.violations] == [(KIND.HITS_OBSTACLE, "wall")]
     assert out.message == "a reason; the braking trajectory still breaks: footprint hits obstacle wall"
     assert out.profile is ProfileKind.BRAKING
+
+
+def _curve_ahead(ego_speed: float, follower: DynamicObstacle | None = None) -> tuple[PlanningProblem, Road]:
+    """A 25 m curve 40 m ahead of the ego (about 8 m/s within 3 m/s² of lateral acceleration)."""
+    road = Road([straight_piece(80.0), arc_piece(25.0, np.pi / 2), straight_piece(80.0)])
+    x, y, heading = road.pose(40.0)
+    obstacles = () if follower is None else (follower,)
+    ego = Ego(x, y, heading, ego_speed)
+    options = Options(target_speed=ego_speed)
+    return PlanningProblem(road.polyline(1.0), Lane(3.5, 3.5), ego, obstacles, Vehicle(), options), road
+
+
+def test_keeping_the_speed_to_escape_a_car_behind_still_slows_for_a_curve() -> None:
+    """At 14 m/s towards the curve with a car 12 m behind at 14 m/s that does not slow: braking is hit
+    from behind, and keeping 14 m/s through the curve would need 7.8 m/s² of lateral acceleration
+    (3 allowed). Whatever the fallback chooses is within the vehicle's limits (the independent checks)."""
+    road = Road([straight_piece(80.0), arc_piece(25.0, np.pi / 2), straight_piece(80.0)])
+    behind = DynamicObstacle("behind", 4.5, 1.8, follow_prediction(road, 40.0 - 16.5, 14.0, 8.0))
+    problem, _ = _curve_ahead(14.0, behind)
+    ref = build_reference(problem.reference_line)
+    start = start_state(ref, problem)
+    s = np.linspace(start.s, start.s + 150.0, 301)
+    path = polyline_path(ref, s, 0.0 * s)
+    out = fallback("a reason", path, path, ref, problem, start, [])
+    assert "braking is hit from behind" in out.message
+    assert limit_problems(problem, out.trajectory) == []
+    assert out.profile is not ProfileKind.BRAKING
+    # what keeping 14 m/s would have been: far outside the limit
+    t = np.arange(81) * 0.1
+    zero = np.zeros(81)
+    kept = Profile(ProfileKind.KEEP_SPEED, t, 14.0 * t, zero + 14.0, zero, zero[1:])
+    broken = limit_problems(problem, kept.sample(path, 0.1, ref, problem.vehicle))
+    assert any("lateral acceleration" in p for p in broken)
+
+
+_SPEEDS = st.floats(0.0, 20.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    radius=st.floats(15.0, 80.0),
+    turn=st.sampled_from([-1.0, 1.0]),
+    straight=st.floats(40.0, 120.0),
+    v0=_SPEEDS,
+    a0=st.floats(-2.0, 1.0),
+    gap=st.floats(2.0, 20.0),
+    closing=st.floats(0.0, 10.0),
+    leader=st.none() | st.tuples(st.floats(8.0, 40.0), _SPEEDS),
+    target=st.floats(3.0, 20.0),
+    above=st.none() | st.floats(0.0, 10.0),
+    car_model=st.booleans(),
+)
+def test_every_answer_in_a_scene_that_allows_it_is_within_the_vehicles_limits(
+    radius: float,
+    turn: float,
+    straight: float,
+    v0: float,
+    a0: float,
+    gap: float,
+    closing: float,
+    leader: tuple[float, float] | None,
+    target: float,
+    above: float | None,
+    car_model: bool,
+) -> None:
+    """A curve ahead, a car behind that does not react (faster or as fast) and maybe a leader: whenever
+    braking at once keeps the lateral limit up to the curve, every answer — fallbacks hit from behind
+    included — keeps the curvature, steering, lateral and longitudinal limits (the independent checks
+    of tests/regression/checks.py)."""
+    vehicle = Vehicle(wheelbase=2.7, rear_axle_offset=1.35) if car_model else Vehicle()
+    a_lat, decel = vehicle.max_lateral_acceleration, vehicle.max_deceleration
+    ego_s = 20.0
+    room = straight - ego_s - vehicle.length
+    # the curve can be taken: at the speed after braking at half the deceleration up to it
+    assume(v0**2 - decel * max(room - v0 * 0.5, 0.0) <= 0.8 * a_lat * radius)
+    road = Road([straight_piece(straight), arc_piece(radius, turn * np.pi / 2), straight_piece(100.0)])
+    x, y, heading = road.pose(ego_s)
+    others = [
+        DynamicObstacle(
+            "behind", 4.5, 1.8, follow_prediction(road, ego_s - vehicle.length - gap, v0 + closing, 8.0)
+        )
+    ]
+    if leader is not None:
+        ahead, speed = leader
+        others.append(
+            DynamicObstacle("leader", 4.5, 1.8, follow_prediction(road, ego_s + 4.5 + ahead, speed, 8.0))
+        )
+    options = Options(target_speed=target, speed_limit=None if above is None else target + above)
+    ego = Ego(x, y, heading, v0, acceleration=a0)
+    problem = PlanningProblem(road.polyline(1.0), Lane(3.5, 3.5), ego, tuple(others), vehicle, options)
+    result = plan(problem)
+    event(result.status)
+    note(f"{result.status}: {result.message}")
+    assert limit_problems(problem, result.trajectory) == []

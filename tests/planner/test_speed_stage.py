@@ -3,14 +3,34 @@ the trajectory samples while keeping the SQP's own account of its solve."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+from typing import Any
+
 import numpy as np
 import pytest
+from scenario_roads import Road, arc_piece, follow_prediction, straight_piece
+from traffic import car
 
+from planner import pipeline
+from planner.candidates import path_length
+from planner.config import DEFAULT_CONFIG
 from planner.pipeline import plan
-from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
+from planner.problem import DynamicObstacle, Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import build_reference
 from planner.roads import straight
-from planner.speed import ProfileKind, braking, profile_grid, speed_limit, target_speed
+from planner.speed import (
+    ProfileKind,
+    SpeedPlan,
+    braking,
+    escape,
+    keep_speed,
+    profile_grid,
+    reach_speed,
+    speed_cap,
+    speed_limit,
+    speed_stage,
+    target_speed,
+)
 from planner.trajectory import frenet_path
 
 ROAD = straight(300.0, step=5.0)
@@ -63,20 +83,26 @@ def test_the_speed_limit_is_the_target_within_the_curvature_limit_and_reaches_ei
         assert np.all(limit[np.abs(path.sigma - sigma) <= 2.0 - 1e-9] <= v + 1e-9)
 
 
-@pytest.mark.parametrize("keep_speed", [False, True])
-def test_the_analytic_profiles_say_what_they_are(keep_speed: bool) -> None:
+ANALYTIC = {ProfileKind.BRAKING: braking, ProfileKind.KEEP_SPEED: keep_speed, ProfileKind.ESCAPE: escape}
+
+
+@pytest.mark.parametrize("kind", list(ANALYTIC))
+def test_the_analytic_profiles_say_what_they_are(kind: ProfileKind) -> None:
     problem = PlanningProblem(ROAD, Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, 12.0, acceleration=1.0))
     ref = build_reference(ROAD)
     s = np.linspace(10.0, 290.0, 100)
     path = frenet_path(ref, s, 0.0 * s, 0.0 * s, 0.0 * s)
-    profile = braking(path, problem, 80, 0.1, keep_speed=keep_speed)
-    assert profile.kind is (ProfileKind.KEEP_SPEED if keep_speed else ProfileKind.BRAKING)
+    profile = ANALYTIC[kind](path, problem, 80, 0.1)
+    assert profile.kind is kind
     assert profile.t[-1] == pytest.approx(8.0) and profile.s[0] == 0.0 and profile.v[0] == 12.0
-    if keep_speed:  # the acceleration released, then the speed kept
+    assert np.all(np.abs(np.diff(profile.a)) <= 30.0 * 0.1 + 1e-9)  # the emergency jerk
+    if kind is ProfileKind.KEEP_SPEED:  # the acceleration released, then the speed kept
         assert profile.a[-1] == pytest.approx(0.0) and profile.v[-1] > 12.0
-    else:
+    elif kind is ProfileKind.BRAKING:
         assert profile.v[-1] == pytest.approx(0.0, abs=1e-9)
-        assert np.all(np.abs(np.diff(profile.a)) <= 30.0 * 0.1 + 1e-9)  # the emergency jerk
+    else:  # up to the vehicle's max speed (no target, no speed limit), at its acceleration
+        assert profile.v[-1] == pytest.approx(problem.vehicle.max_speed, abs=0.05)
+        assert np.all(profile.a <= problem.vehicle.max_acceleration + 1e-9)
 
 
 def test_a_plan_that_passes_its_checks_uses_the_optimised_profile() -> None:
@@ -112,3 +138,93 @@ def test_a_fallback_that_brakes_keeps_the_sqps_own_solve_info() -> None:
     assert result.diagnostics.speed_profile is ProfileKind.BRAKING
     assert result.diagnostics.speed.iterations > 0  # the SQP ran; its info is not a braking profile's
     assert "braking profile" not in result.diagnostics.speed.message
+
+
+@pytest.mark.parametrize(
+    ("target", "limit", "cruise", "cap"),
+    [
+        (None, None, 20.0, 20.0),
+        (8.0, None, 8.0, 8.0),
+        (8.0, 14.0, 8.0, 14.0),
+        (None, 14.0, 14.0, 14.0),
+        (8.0, 30.0, 8.0, 20.0),
+        (25.0, 30.0, 20.0, 20.0),
+    ],
+)
+def test_the_profile_cruises_at_the_target_and_may_drive_up_to_the_speed_limit(
+    target: float | None, limit: float | None, cruise: float, cap: float
+) -> None:
+    """Without a speed limit the target is the cap (today's behaviour); with one, the cap is the speed
+    limit; both within the vehicle's max speed (20 m/s)."""
+    options = Options(target_speed=target, speed_limit=limit)
+    problem = PlanningProblem(ROAD, Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, 5.0), options=options)
+    assert (target_speed(problem), speed_cap(problem)) == (cruise, cap)
+    ref = build_reference(ROAD)
+    s = np.linspace(10.0, 100.0, 181)
+    path = frenet_path(ref, s, 0.0 * s, 0.0 * s, 0.0 * s)
+    np.testing.assert_allclose(speed_limit(path, problem), cap)
+
+
+def test_keeping_the_speed_slows_for_a_curve_ahead_and_speeds_up_after_it() -> None:
+    """At 14 m/s towards a 2 m stretch bent to 0.1 1/m (about 5 m/s at 3 m/s²): keeping the speed
+    slows before it, within the path's limit, and comes back to the speed after it."""
+    problem = PlanningProblem(
+        ROAD, Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, 14.0), options=Options(target_speed=14.0)
+    )
+    ref = build_reference(ROAD)
+    s = np.linspace(10.0, 250.0, 481)
+    bend = np.where((s > 60.0) & (s < 62.0), 0.1, 0.0)
+    path = frenet_path(ref, s, 0.0 * s, 0.0 * s, bend)
+    profile = keep_speed(path, problem, 160, 0.1)
+    limit = np.interp(profile.s, path.sigma, speed_limit(path, problem, cap=np.inf))
+    assert np.all(profile.v <= limit + 1e-6)
+    assert profile.v.min() < 6.0 and profile.v[-1] == pytest.approx(14.0, abs=1e-3)
+    straight_on = keep_speed(frenet_path(ref, s, 0.0 * s, 0.0 * s, 0.0 * s), problem, 160, 0.1)
+    np.testing.assert_allclose(straight_on.v, 14.0)  # nothing to slow for: the speed kept
+
+
+def test_the_paths_reach_the_speed_limit_only_with_a_vehicle_behind() -> None:
+    """Above the target the profile speeds up only to keep ahead of a vehicle from behind: only then must
+    the candidates' paths be long enough for the speed limit (longer paths spread their points thinner)."""
+    ref = build_reference(ROAD)
+    ego = Ego(30.0, 0.0, 0.0, 8.0)
+    limited = Options(target_speed=8.0, speed_limit=16.0)
+    alone = PlanningProblem(ROAD, Lane(3.5, 3.5), ego, options=limited)
+    behind = PlanningProblem(ROAD, Lane(3.5, 3.5), ego, (car("behind", 10.0, 14.0),), options=limited)
+    ahead = PlanningProblem(ROAD, Lane(3.5, 3.5), ego, (car("ahead", 60.0, 14.0),), options=limited)
+    capped = PlanningProblem(ROAD, Lane(3.5, 3.5), ego, behind.obstacles, options=Options(target_speed=8.0))
+    start = 30.0
+    assert reach_speed(ref, alone, start) is None and reach_speed(ref, ahead, start) is None
+    assert reach_speed(ref, capped, start) is None  # no speed limit: the target is the cap
+    assert reach_speed(ref, behind, start) == 16.0
+    vehicle, options = Vehicle(), limited
+    assert path_length(ego, vehicle, options, 16.0) > path_length(ego, vehicle, options) + 8.0 * (16.0 - 8.0)
+
+
+def test_behind_a_follower_bound_the_profile_brakes_later_with_the_emergency_jerk(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """At 10 m/s, 15 m before a 25 m curve (about 8 m/s at 3 m/s²), a car 8 m behind at 10 m/s: the
+    comfortable jerk starts braking at once and the car behind closes in; braking later and harder (the
+    emergency jerk) keeps further ahead of it, within the same limits."""
+    road = Road([straight_piece(100.0), arc_piece(25.0, np.pi / 2), straight_piece(80.0)])
+    x, y, heading = road.pose(85.0)
+    behind = DynamicObstacle("behind", 4.5, 1.8, follow_prediction(road, 85.0 - 4.5 - 8.0, 10.0, 8.0))
+    ego = Ego(x, y, heading, 10.0)
+    problem = PlanningProblem(
+        road.polyline(1.0), Lane(3.5, 3.5), ego, (behind,), Vehicle(), Options(target_speed=10.0)
+    )
+    comfortable = replace(DEFAULT_CONFIG, speed=replace(DEFAULT_CONFIG.speed, emergency_jerk=8.0 + 1e-9))
+    stages: list[SpeedPlan] = []
+
+    def kept(*args: Any, **kwargs: Any) -> SpeedPlan:
+        stages.append(speed_stage(*args, **kwargs))
+        return stages[-1]
+
+    monkeypatch.setattr(pipeline, "speed_stage", kept)
+    harder, soft = plan(problem), plan(problem, comfortable)
+    assert len(stages) == 2
+    later, early = stages[0].solved, stages[1].solved
+    assert later.follower_violation < early.follower_violation - 0.05
+    assert later.speed_violation <= max(early.speed_violation, 0.05)
+    assert harder.trajectory.v[10] > soft.trajectory.v[10]  # it keeps its speed longer

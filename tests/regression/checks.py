@@ -16,7 +16,13 @@ What is checked is properties, not numbers:
   curvature agreeing with the heading's change and the reported ``s, d`` with TransF-κ of the positions;
 * ``fallback``: a reason, a braking profile (speed never increasing once a positive acceleration at the
   start is released, deceleration within the limit)
-  and steps consistent with ``v·dt``;
+  and steps consistent with ``v·dt``; or, where the answer says it did not brake
+  (``diagnostics.speed.profile`` other than ``braking``: braking is hit from behind), every check of
+  ``ok`` but the hits of the vehicles behind the ego at the start;
+* every status: the vehicle's limits (:func:`limit_problems`: curvature, steering, lateral and
+  longitudinal acceleration), computed here from the answer; a fallback that brakes at full
+  deceleration from the start is excused (nothing along its path does better: the state it starts
+  from cannot keep them);
 * a request with a goal (:func:`goal_problems`): ``diagnostics.goal`` present (absent without a goal),
   ``reached`` at ``t`` exactly when the trajectory first meets the goal at ``t`` (the centre inside the
   region by shapely's ``covers``, ``t`` in the window, the speed in the range within 1e-3 m/s).
@@ -40,10 +46,10 @@ from app.models.plan import PlanResponse
 from app.models.planning import PlanningRequest
 from planner.collision import box_corners
 from planner.frenet import to_frenet
-from planner.problem import CircleObstacle, PlanningProblem, PolygonObstacle
+from planner.problem import CircleObstacle, DynamicObstacle, PlanningProblem, PolygonObstacle
 from planner.reference import build_reference
 from planner.trajectory import Trajectory
-from planner.validation import trajectory_violations
+from planner.validation import ViolationKind, trajectory_violations
 
 STATUSES = ("ok", "stopped", "fallback")
 TRAJECTORY_FIELDS = ("t", "x", "y", "heading", "curvature", "v", "a", "s", "d")
@@ -164,8 +170,9 @@ def common_problems(request: PlanningRequest, problem: PlanningProblem, traj: Tr
     return out
 
 
-def full_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
-    """Every check of an ``ok`` or ``stopped`` trajectory."""
+def full_problems(problem: PlanningProblem, traj: Trajectory, behind_ok: bool = False) -> list[str]:
+    """Every check of an ``ok`` or ``stopped`` trajectory; with ``behind_ok``, hits by the moving
+    obstacles behind the ego at the start (:func:`behind_at_start`) left out."""
     ref = build_reference(problem.reference_line)
     polygons = [
         (ob.id, shapely.make_valid(shapely.Polygon(np.asarray(ob.polygon, dtype=float))))
@@ -173,7 +180,12 @@ def full_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
         if isinstance(ob, PolygonObstacle)
     ]
     # the planner's own checks (dynamic obstacles at each time), as messages
-    out = [v.message for v in trajectory_violations(ref, problem, traj, polygons)]
+    rear = behind_at_start(problem) if behind_ok else set()
+    out = [
+        v.message
+        for v in trajectory_violations(ref, problem, traj, polygons)
+        if not (v.kind is ViolationKind.HITS_MOVING_OBSTACLE and v.obstacle_id in rear)
+    ]
     veh, ego = problem.vehicle, problem.ego
 
     prints = shapely.polygons(box_corners(traj.x, traj.y, traj.heading, veh.length, veh.width))
@@ -234,6 +246,78 @@ def full_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
     return out
 
 
+def behind_at_start(problem: PlanningProblem) -> set[str]:
+    """Ids of the moving obstacles whose centre at ``t = 0`` lies behind the ego's along the reference."""
+    ref = build_reference(problem.reference_line)
+    movers = [ob for ob in problem.obstacles if isinstance(ob, DynamicObstacle)]
+    if not movers:
+        return set()
+    starts = np.array([np.interp(0.0, ob.prediction[:, 0], c) for ob in movers for c in ob.prediction.T[1:3]])
+    fr = to_frenet(ref, np.vstack((starts.reshape(-1, 2), [[problem.ego.x, problem.ego.y]])))
+    return {ob.id for ob, s in zip(movers, fr.s[:-1], strict=True) if s < fr.s[-1]}
+
+
+def limit_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
+    """The vehicle's own limits along ``traj``: while moving, ``|curvature| ≤ max_curvature`` (a car: its
+    steering angle ``atan(W κ)`` within ``max_steering_angle``, default ``atan(W · max_curvature)``, and
+    its rate within ``max_steering_rate``); the lateral acceleration of the centre ``v² |κ| √(1 + (l_r
+    κ)²)`` (``l_r`` a car's rear axle offset, else 0) within ``max_lateral_acceleration``; the
+    acceleration within ``[−max_deceleration, max_acceleration]`` while moving. (Not ``max_speed``: a measured
+    acceleration at the start may carry a fallback past it while the planner's jerk limit releases it;
+    ``ok`` answers are held to it by :func:`full_problems`.)"""
+    veh, out = problem.vehicle, []
+    moving = traj.v > MOVING
+    curv = np.abs(traj.curvature)
+    car = veh.wheelbase is not None
+    if np.any(moving & (curv > veh.max_curvature * (1 + REL_TOL) + 1e-4)):
+        i = int(np.argmax(np.where(moving, curv, 0.0)))
+        out.append(f"|curvature| {curv[i]:.4f} 1/m above max_curvature {veh.max_curvature} at {_at(traj, i)}")
+    if car:
+        assert veh.wheelbase is not None
+        delta = np.arctan(veh.wheelbase * traj.curvature)
+        limit = veh.max_steering_angle or float(np.arctan(veh.wheelbase * veh.max_curvature))
+        if np.any(moving & (np.abs(delta) > limit * (1 + REL_TOL) + 1e-4)):
+            out.append(f"|steering angle| {np.abs(delta).max():.3f} rad above {limit:.3f} rad")
+        if veh.max_steering_rate is not None:
+            rate = np.abs(np.diff(delta)) / np.diff(traj.t)
+            if np.any(rate > veh.max_steering_rate * (1 + REL_TOL) + 1e-3):
+                out.append(f"steering rate {rate.max():.3f} rad/s above {veh.max_steering_rate} rad/s")
+    offset = float(veh.rear_axle_offset or 0.0) if car else 0.0
+    lateral = traj.v**2 * curv * np.sqrt(1.0 + (offset * traj.curvature) ** 2)
+    if np.any(lateral > veh.max_lateral_acceleration * (1 + REL_TOL) + 1e-3):
+        i = int(np.argmax(lateral))
+        out.append(
+            f"lateral acceleration {lateral[i]:.2f} m/s² above {veh.max_lateral_acceleration} m/s² at "
+            f"{_at(traj, i)}"
+        )
+    # the acceleration where the vehicle moves at the point or the next (a standing one's "acceleration"
+    # changes no speed: a braking profile stopping a backward motion it cannot avoid reports one)
+    driven = moving | np.append(moving[1:], False)
+    a = traj.a[driven]
+    if np.any((a > veh.max_acceleration + 1e-3) | (a < -veh.max_deceleration - 1e-3)):
+        out.append(f"acceleration in [{a.min():.2f}, {a.max():.2f}] m/s² outside the limits")
+    return out
+
+
+def brakes_at_once(problem: PlanningProblem, traj: Trajectory) -> bool:
+    """Whether ``traj`` brakes as hard as the vehicle can from the start: its acceleration falls strictly
+    from the first point until it reaches ``−max_deceleration`` (a jerk-limited ramp, no pause), stays
+    there, and is only released (monotonically) as the vehicle comes to a stop within the horizon; or
+    it stands throughout."""
+    decel, a = problem.vehicle.max_deceleration, traj.a
+    full = a <= -decel * (1 - REL_TOL) - 1e-6
+    if not np.any(full):
+        return bool(np.all(traj.v <= MOVING))
+    first = int(np.argmax(full))
+    if np.any(np.diff(a[: first + 1]) >= 0.0):
+        return False
+    eased = np.flatnonzero(~full[first:])
+    if eased.size == 0:
+        return True
+    release = first + int(eased[0])
+    return bool(np.all(np.diff(a[release:]) >= -1e-9) and traj.v[-1] <= MOVING)
+
+
 def fallback_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
     """A fallback brakes: speed never increases once a positive acceleration at the start is released,
     deceleration within the limit, slower at the end than at its peak."""
@@ -268,8 +352,12 @@ def plan_problems(request_json: dict[str, Any], answer: Any, statuses: Sequence[
     out += common_problems(request, problem, traj)
     if status in ("ok", "stopped"):
         out += full_problems(problem, traj)
+    elif answer["diagnostics"]["speed"]["profile"] != "braking":  # braking is hit from behind
+        out += full_problems(problem, traj, behind_ok=True)
     else:
         out += fallback_problems(problem, traj)
+    if status != "fallback" or not brakes_at_once(problem, traj):
+        out += limit_problems(problem, traj)
     return out
 
 

@@ -161,6 +161,7 @@ def _broken(request: dict[str, Any], answer: dict[str, Any]) -> list[tuple[str, 
 
     def speeding_fallback(a: dict[str, Any]) -> None:
         a["status"] = "fallback"
+        a["diagnostics"]["speed"]["profile"] = "braking"
         _column(a, "v", lambda i, v: v + 0.01 * i)
 
     case("fallback speeds up", "speeds up", ans=speeding_fallback)

@@ -1,12 +1,17 @@
-"""Analytic speed profiles: a full stop and keeping the speed, within the jerk limit."""
+"""Analytic speed profiles: a full stop, keeping the speed, and a speed within the path's limit, within
+the jerk limit."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
-from solvers.speed_problem import integrate_jerk
-from solvers.speed_profiles import braking_profile, cruise_profile
+from solvers.speed_problem import SpeedProblem, integrate_jerk
+from solvers.speed_profiles import _brakes_within, _Envelope, braking_profile, cruise_profile, limited_profile
 from tests.solvers.speed_cases import make_problem
 
 
@@ -46,3 +51,84 @@ def test_cruise_profile_releases_the_acceleration_and_keeps_the_speed() -> None:
     # releasing the brake would end below standstill: it stops instead
     slow = make_problem(v0=0.3, a0=-3.0, jerk_max=10.0)
     assert np.array_equal(cruise_profile(slow), braking_profile(slow))
+
+
+def _dip(v_high: float, v_low: float, start: float, end: float) -> tuple[list[float], list[float]]:
+    """A limit of ``v_high`` with ``v_low`` on ``[start, end]`` [m] (steps 1 m wide)."""
+    return [0.0, start - 1.0, start, end, end + 1.0, 1000.0], [v_high, v_high, v_low, v_low, v_high, v_high]
+
+
+def _within(problem: SpeedProblem, s: np.ndarray, v: np.ndarray) -> np.ndarray:
+    limit = np.interp(s, problem.limit_s, problem.limit_v)
+    return np.asarray(v <= limit + 1e-6)
+
+
+def test_limited_profile_slows_for_a_dip_as_late_as_it_must_and_speeds_up_after_it() -> None:
+    limit_s, limit_v = _dip(30.0, 6.0, 60.0, 75.0)
+    problem = make_problem(
+        v0=15.0, limit_s=limit_s, limit_v=limit_v, jerk_max=30.0, a_min=-6.0, a_max=2.5, steps=160
+    )
+    jerk = limited_profile(problem, 15.0)
+    s, v, a = integrate_jerk(problem.dt, 0.0, problem.v0, problem.a0, jerk)
+    assert np.all(_within(problem, s, v))
+    assert np.max(np.abs(jerk)) <= 30.0 * (1 + 1e-12)
+    assert np.all((a >= -6.0 - 1e-9) & (a <= 2.5 + 1e-9)) and np.all(v >= 0.0)
+    assert np.all(v[s < 20.0] == pytest.approx(15.0))  # far before the dip: the speed kept
+    inside = (s >= 60.0) & (s <= 75.0)
+    assert inside.any() and v[inside].max() > 5.5  # braked only as far as the dip needs
+    assert v[-1] == pytest.approx(15.0, abs=1e-3) and s[-1] > 76.0  # back at the speed after it
+
+
+def test_limited_profile_from_a_state_that_cannot_keep_the_limit_brakes_fully() -> None:
+    limit_s, limit_v = _dip(30.0, 5.0, 10.0, 40.0)  # 20 m/s, 10 m before 5 m/s: out of reach
+    problem = make_problem(v0=20.0, limit_s=limit_s, limit_v=limit_v, jerk_max=30.0, a_min=-6.0)
+    jerk = limited_profile(problem, 20.0)
+    np.testing.assert_allclose(jerk[:10], braking_profile(problem)[:10])
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    v0=st.floats(0.0, 30.0),
+    a0=st.floats(-6.0, 2.5),
+    v_keep=st.floats(0.0, 35.0),
+    low=st.floats(1.0, 30.0),
+    start=st.floats(0.0, 150.0),
+    width=st.floats(1.0, 50.0),
+)
+def test_limited_profile_keeps_the_limit_wherever_full_braking_can(
+    v0: float, a0: float, v_keep: float, low: float, start: float, width: float
+) -> None:
+    """Wherever full braking from the start keeps the limit, so does the profile; it never goes faster
+    than the faster of ``v_keep`` and the start, and keeps the jerk, the acceleration and ``v ≥ 0``."""
+    limit_s, limit_v = _dip(40.0, low, start + 2.0, start + 2.0 + width)
+    problem = make_problem(
+        v0=v0, a0=a0, limit_s=limit_s, limit_v=limit_v, jerk_max=30.0, a_min=-6.0, a_max=2.5
+    )
+    assume(problem.speed_floor()[0].min() == 0.0)  # no backward motion forced by a0 (braking mirrors it)
+    s_b, v_b, _ = integrate_jerk(problem.dt, 0.0, v0, a0, braking_profile(replace(problem, steps=1000)))
+    jerk = limited_profile(problem, v_keep)
+    s, v, a = integrate_jerk(problem.dt, 0.0, v0, a0, jerk)
+    assert np.max(np.abs(jerk)) <= 30.0 * (1 + 1e-12)
+    assert np.all(a >= min(a0, -6.0) - 1e-9) and np.all(a <= max(a0, 2.5) + 1e-9)
+    assert np.all(v >= -1e-9)
+    assert np.all(v <= max(v_keep, v0 + max(a0, 0.0) ** 2 / 60.0) + 0.05)
+    if np.all(_within(problem, s_b, v_b)):
+        assert np.all(_within(problem, s, v))
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    limit_v=st.lists(st.floats(0.5, 30.0), min_size=2, max_size=12),
+    spacing=st.floats(0.5, 20.0),
+    s=st.floats(0.0, 200.0),
+    v=st.floats(0.0, 30.0),
+    a=st.floats(-6.0, 2.5),
+)
+def test_the_quick_braking_test_never_passes_a_state_whose_braking_breaks_the_limit(
+    limit_v: list[float], spacing: float, s: float, v: float, a: float
+) -> None:
+    problem = make_problem(
+        limit_s=spacing * np.arange(len(limit_v)), limit_v=limit_v, jerk_max=30.0, a_min=-6.0, a_max=2.5
+    )
+    if _Envelope.of(problem).keeps(s, v, a):
+        assert _brakes_within(problem, s, v, a)

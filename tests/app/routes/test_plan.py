@@ -24,6 +24,7 @@ from app.settings import Settings
 from planner.pipeline import plan
 from planner.speed import ProfileKind
 from solvers.result import SolveInfo, SolverStatus
+from tests.regression.checks import plan_problems
 
 TRAJECTORY_KEYS = {"t", "x", "y", "heading", "curvature", "v", "a", "s", "d"}
 #: a car's geometry
@@ -363,3 +364,28 @@ def test_a_goal_answer_matches_the_openapi_schema(client: TestClient) -> None:
         _check(_plan(client, {**OPEN, "goal": body}), schema, components, "answer")
     examples = spec["paths"]["/v1/plan"]["post"]["requestBody"]["content"]["application/json"]["examples"]
     assert any("goal" in example["value"] for example in examples.values())
+
+
+def _car_behind(speed_limit: float) -> dict[str, Any]:
+    """A single lane; the ego at 10 m/s (target 10); a car 12 m behind at 16 m/s that does not react."""
+    x0 = 30.0 - 4.5 - 12.0
+    prediction = [{"t": t, "x": x0 + 16.0 * t, "y": 0.0, "heading": 0.0} for t in np.arange(0.0, 8.01, 0.5)]
+    return {
+        "reference_line": [[0.0, 0.0], [300.0, 0.0]],
+        "lane": {"left_width": 1.75, "right_width": 1.75},
+        "obstacles": [{"id": "behind", "length": 4.5, "width": 1.8, "prediction": prediction}],
+        "ego": {"x": 30.0, "y": 0.0, "heading": 0.0, "speed": 10.0},
+        "options": {"target_speed": 10.0, "speed_limit": speed_limit},
+    }
+
+
+def test_a_car_behind_that_cannot_be_escaped_is_named_in_the_diagnostics(client: TestClient) -> None:
+    named = _plan(client, _car_behind(10.0))
+    assert named["status"] == "fallback"
+    follower = named["diagnostics"]["follower"]
+    assert (follower["obstacle_id"], follower["reason"]) == ("behind", "speed_limit") and follower["t"] > 0
+    assert named["diagnostics"]["speed"]["profile"] != "braking"  # it does not brake into it
+    assert plan_problems(_car_behind(10.0), named, ["fallback"]) == []
+    escaped = _plan(client, _car_behind(20.0))  # a speed limit above: it speeds up ahead of it
+    assert escaped["status"] == "ok" and "follower" not in escaped["diagnostics"]
+    assert plan_problems(_car_behind(20.0), escaped, ["ok"]) == []
