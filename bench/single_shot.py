@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     from tests.regression.checks import STATUSES, limit_problems, plan_problems, trajectory_of
 
     print(
-        "| scene | status | profile | follower | goal | breaks | vehicle limits |\n" + "|---|" * 7
+        "| scene | status | profile | follower | goal | breaks | vehicle limits |\n|" + "---|" * 7
     )
     broken = beyond = 0
     paths = scenes()
