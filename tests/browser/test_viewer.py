@@ -431,3 +431,21 @@ def test_a_request_loads_from_a_url(page: Any, base_url: str, api: httpx.Client)
     assert data["planStatus"] == answer["status"]
     assert int(map_data(page)["obstacles"]) == len(request["obstacles"])
     assert int(map_data(page)["trajectoryPoints"]) == len(answer["trajectory"])
+
+
+def test_the_goal_region_of_a_request_is_drawn(
+    page: Any, base_url: str, api: httpx.Client, demo: dict[str, Any]
+) -> None:
+    page.goto(f"{base_url}/viewer")
+    circle = {**demo, "goal": {"position": {"circle": {"center": [30.0, 2.0], "radius": 3.0}}}}
+    assert open_editor_and_plan(page, json.dumps(circle))["planStatus"] == plan(api, circle)["status"]
+    attributes = "els => els.map(e => ['cx', 'cy', 'r'].map(a => +e.getAttribute(a)))"
+    drawn = page.eval_on_selector_all("circle.goal", attributes)
+    assert drawn == [[30.0, -2.0, 3.0]]  # the map draws y flipped
+    square = [[20.0, -1.0], [24.0, -1.0], [24.0, 3.0], [20.0, 3.0]]
+    open_editor_and_plan(page, json.dumps({**demo, "goal": {"position": {"polygon": square}}}))
+    outline = page.eval_on_selector_all("path.goal", "els => els.map(e => e.getAttribute('d'))")
+    assert len(outline) == 1 and np.allclose(svg_points(outline[0])[:4], square)
+    assert page.locator("circle.goal").count() == 0
+    open_editor_and_plan(page, json.dumps(demo))  # no goal: none drawn
+    assert page.locator(".goal").count() == 0

@@ -562,6 +562,7 @@ async function showPlan(request, token, signal) {
   state.road = guarded("the road", () => drawRoad(request));
   if (state.road) points.push(...state.road.outline);
   points.push(...(guarded("the obstacles", () => drawObstacles(request.obstacles)) || []));
+  guarded("the goal", () => drawGoal(requestGoal(request.goal)));
   map.extent = bounds(points);
   map.fit(map.extent);
   setBadge("planning…", "busy");
@@ -769,6 +770,16 @@ function showRun(doc) {
   const tEnd = run.driven.t[run.driven.t.length - 1] ?? 0;
   setTimeRange(tEnd, Math.min(doc.replan_period / 4, 0.05));
   setTime(0);
+}
+
+/** A request's `goal.position` (polygon or circle) in drawGoal's terms; null without one. */
+function requestGoal(goal) {
+  const position = goal && goal.position;
+  if (!position) return null;
+  if (Array.isArray(position.polygon)) return { polygon: position.polygon };
+  const circle = position.circle;
+  if (circle && Array.isArray(circle.center)) return { position: circle.center, radius: circle.radius };
+  return null;
 }
 
 function drawGoal(goal) {
