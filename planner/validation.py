@@ -20,7 +20,7 @@ from planner.collision import box_corners, footprints, prediction_at
 from planner.frenet import to_cartesian, to_frenet
 from planner.kinematics import lateral_acceleration, planned_point, steering_angle
 from planner.problem import DynamicObstacle, PlanningProblem, Vehicle
-from planner.reference import FloatArray, ReferenceLine, widths_at
+from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Trajectory
 
 
@@ -89,8 +89,10 @@ class ViolationKind(StrEnum):
     S_DECREASES = "s_decreases"
     #: the path crosses or overlaps itself
     SELF_INTERSECTS = "self_intersects"
-    #: the footprint leaves the lane
+    #: the footprint leaves the lane (not checked while the plan borrows the road beyond it)
     LANE = "lane"
+    #: the footprint leaves the road (``PlanningProblem.road``, when the request gives one)
+    ROAD = "road"
     #: the footprint meets a static obstacle
     HITS_OBSTACLE = "hits_obstacle"
     #: the footprint meets a moving obstacle at its predicted pose at the same time
@@ -167,6 +169,7 @@ _MESSAGES = {
     ViolationKind.S_DECREASES: "s does not increase while moving",
     ViolationKind.SELF_INTERSECTS: "self-intersects",
     ViolationKind.LANE: "footprint leaves the lane",
+    ViolationKind.ROAD: "footprint leaves the road",
     ViolationKind.FRENET: "positions inconsistent with the reported (s, d)",
     ViolationKind.HEADING: "heading off the direction of motion",
     ViolationKind.TURN: "curvature inconsistent with the heading's change",
@@ -184,6 +187,8 @@ def trajectory_violations(
     problem: PlanningProblem,
     traj: Trajectory,
     static: list[tuple[str, BaseGeometry]],
+    *,
+    borrowing: bool = False,
 ) -> list[Violation]:
     """Every check a returned trajectory must pass, in this order; an empty list when it passes them all.
 
@@ -192,10 +197,11 @@ def trajectory_violations(
     (:func:`planner.kinematics.lateral_acceleration`, ``v²·|curvature|`` for the point model) at most
     ``max_lateral_acceleration``; acceleration within the limits; consecutive positions of the planned
     point (the centre, a car's rear axle) consistent with ``v·dt``; ``s`` never decreasing and strictly
-    increasing while moving; no self-intersection; footprint inside the lane (all four corners by
-    TransF-κ; no further out than the measured start where that is already partly outside) and clear of
-    every static obstacle and of every moving one at its predicted pose at the same time; for a car,
-    its kinematics (:func:`car_violations`).
+    increasing while moving; no self-intersection; footprint inside the lane unless ``borrowing`` (the
+    lane decision borrows the road beyond it: :mod:`planner.decision`) and inside the road when the
+    problem has one (all four corners by TransF-κ; no further out than the measured start where that
+    is already partly outside) and clear of every static obstacle and of every moving one at its
+    predicted pose at the same time; for a car, its kinematics (:func:`car_violations`).
     And the numbers agree with each other (:func:`consistency_violations`), the speed keeps ``max_speed``
     (:func:`speed_violations`) and the front stays before the reference line's end.
     """
@@ -241,16 +247,19 @@ def trajectory_violations(
     prints = footprints(traj.x, traj.y, traj.heading, vehicle)
     corners = box_corners(traj.x, traj.y, traj.heading, vehicle.length, vehicle.width).reshape(-1, 2)
     fr = to_frenet(ref, corners)
-    left = widths_at(problem.lane.left_width, ref, fr.s, field_name="lane.left_width")
-    right = widths_at(problem.lane.right_width, ref, fr.s, field_name="lane.right_width")
-    outside = np.maximum(fr.d - left, -right - fr.d).reshape(-1, 4)
-    # The start is a measurement: a vehicle already partly outside the lane may not get further out
-    # until it has moved one length away.
     near_start = np.hypot(traj.x - traj.x[0], traj.y - traj.y[0]) < vehicle.length
-    allowance = np.where(near_start, max(float(outside[0].max()), 0.0), 0.0)[:, None]
-    off_lane = np.any(outside - allowance > _GEOMETRY_TOL, axis=1)
-    if np.any(off_lane):
-        out.append(Violation(kind.LANE, t=_first(t, off_lane)))
+    surfaces = [] if borrowing else [(kind.LANE, problem.lane)]
+    if problem.road is not None:
+        surfaces.append((kind.ROAD, problem.road))
+    for surface_kind, surface in surfaces:
+        left, right = surface.widths(ref, fr.s)
+        outside = np.maximum(fr.d - left, -right - fr.d).reshape(-1, 4)
+        # The start is a measurement: a vehicle already partly outside the lane (the road) may not get
+        # further out until it has moved one length away.
+        allowance = np.where(near_start, max(float(outside[0].max()), 0.0), 0.0)[:, None]
+        off = np.any(outside - allowance > _GEOMETRY_TOL, axis=1)
+        if np.any(off):
+            out.append(Violation(surface_kind, t=_first(t, off)))
     # past the reference's end the road is not known: the front (by the reported s) no further past it
     # than at the start
     beyond = traj.s + 0.5 * vehicle.length - ref.length
