@@ -64,10 +64,12 @@ def fallback(
     static: list[tuple[str, BaseGeometry]],
     planned: SpeedResult | None = None,
     config: PlannerConfig = DEFAULT_CONFIG,
+    borrowing: bool = False,
 ) -> Fallback:
     """The fallback for ``reason``, along ``path`` (the best path known), the chosen ``candidate`` and
     the ego's offset; ``planned`` is the SQP's profile along ``path``, weighed when braking is hit from
-    behind (if it is a solution). ``static`` are the static obstacles' outlines."""
+    behind (if it is a solution). ``static`` are the static obstacles' outlines; ``borrowing``: the lane
+    decision borrows the road (the checks then keep the footprint in the road, not the lane)."""
     options = problem.options
     steps, dt = profile_grid(options, config.speed)
     hold = held_offset(ref, knots(ref, start, float(candidate.s[-1]), config.lateral), start.d)
@@ -75,7 +77,7 @@ def fallback(
     for option in _distinct(path, candidate, hold):
         profile = braking(option, problem, steps, dt, config.speed)
         traj = profile.sample(option, options.dt, ref, problem.vehicle)
-        bad = trajectory_violations(ref, problem, traj, static)
+        bad = trajectory_violations(ref, problem, traj, static, borrowing=borrowing)
         tried.append((traj, bad))
         if not bad:
             break
@@ -94,7 +96,7 @@ def fallback(
     weighed: list[tuple[str, Profile | None, Trajectory, list[Violation]]] = []
     for label, profile in others:
         alt = profile.sample(path, options.dt, ref, problem.vehicle)
-        alt_bad = trajectory_violations(ref, problem, alt, static)
+        alt_bad = trajectory_violations(ref, problem, alt, static, borrowing=borrowing)
         weighed.append((label, profile, alt, alt_bad))
         if not alt_bad:
             break

@@ -17,7 +17,7 @@ offset and the speed profile stops before the block (:func:`hold_path`).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -27,7 +27,7 @@ from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
 from planner.ego import EgoFrenet
 from planner.kinematics import lateral_curvature
 from planner.lane import lane_bounds
-from planner.problem import PlanningProblem
+from planner.problem import Lane, PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Path, frenet_path
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
@@ -64,15 +64,20 @@ def smoothed_slope(d: FloatArray, s: FloatArray, window: float) -> FloatArray:
 
 
 def curvature_allowance(
-    s: FloatArray, start: EgoFrenet, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG
+    s: FloatArray,
+    start: EgoFrenet,
+    problem: PlanningProblem,
+    config: PlannerConfig = DEFAULT_CONFIG,
+    braking_share: float = 0.5,
 ) -> FloatArray:
     """Largest path curvature [1/m] at knots ``s`` [m]: ``curvature_share · κ_max``, and the curvature
     at ``limit_margin · a_lat,max`` (:func:`planner.kinematics.lateral_curvature`: ``a/v²`` for the point
-    model) for the speed ``v`` the vehicle can at best have slowed to there (braking at half its
-    deceleration from ``v₀``), so that the speed profile can keep the lateral-acceleration limit."""
+    model) for the speed ``v`` the vehicle can at best have slowed to there (braking at ``braking_share``
+    of its deceleration from ``v₀``: half, or all of it to swerve round a block too close to stop for
+    comfortably), so that the speed profile can keep the lateral-acceleration limit."""
     v = problem.vehicle
     travelled = np.maximum(s - start.s, 0.0)
-    v_sq = np.maximum(problem.ego.speed**2 - v.max_deceleration * travelled, 1.0)
+    v_sq = np.maximum(problem.ego.speed**2 - 2.0 * braking_share * v.max_deceleration * travelled, 1.0)
     return np.minimum(
         config.lateral.curvature_share * v.curvature_limit,
         lateral_curvature(config.limit_margin * v.max_lateral_acceleration / v_sq, v),
@@ -178,14 +183,16 @@ def _attempt(
     lane_margin: float | None,
     time_left: Callable[[], float | None],
     config: PlannerConfig,
+    corridor: Lane,
+    braking_share: float,
 ) -> _Attempt:
-    """Bounds at knots ``at`` (``lane_margin`` [m] to the lane's edges, default the options' margin) and
-    the lateral QP on them, tracking the candidate's offsets ``d_ref`` [m]."""
+    """Bounds at knots ``at`` in ``corridor`` (``lane_margin`` [m] to its edges, default the options'
+    margin) and the lateral QP on them, tracking the candidate's offsets ``d_ref`` [m]."""
     vehicle, options = problem.vehicle, problem.options
-    lane = lane_bounds(ref, problem.lane, at, half_width=0.5 * vehicle.width, margin=options.lateral_margin)
+    lane = lane_bounds(ref, corridor, at, half_width=0.5 * vehicle.width, margin=options.lateral_margin)
     bounds = lateral_bounds(
         ref,
-        problem.lane,
+        corridor,
         at,
         vehicle,
         margin=options.lateral_margin,
@@ -200,7 +207,7 @@ def _attempt(
     # a lane that runs out (narrower than the vehicle) at the reference's end is its end, not a block
     road_end = bounds.blocked is not None and at[bounds.blocked] >= reach
     bounds, d_ref = _qp_bounds(bounds, d_ref, start, reach, vehicle.length)
-    allowance = curvature_allowance(bounds.s, start, problem, config)
+    allowance = curvature_allowance(bounds.s, start, problem, config, braking_share)
     qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
     if not qp.info.usable:  # too fast for the road: keep at least the vehicle's limit
         allowance = np.full(bounds.s.shape, config.lateral.retry_curvature_share * vehicle.curvature_limit)
@@ -221,6 +228,7 @@ class LateralPlan:
         road_end: whether the block is the lane's end rather than something in the way.
         held: whether ``path`` holds the ego's offset because the QP left no room to steer.
         obstacle_on_hold: whether an obstacle on the held offset is the block.
+        waiting: whether the block is a line to wait at before the lane's own (:meth:`stopping_at`).
     """
 
     path: Path | None
@@ -230,6 +238,7 @@ class LateralPlan:
     road_end: bool
     held: bool = False
     obstacle_on_hold: bool = False
+    waiting: bool = False
 
     @property
     def knots(self) -> int:
@@ -239,12 +248,22 @@ class LateralPlan:
     @property
     def block_at(self) -> float:
         """Where a block stops the path [m] (the bounds end before the bounds' own block)."""
-        return float(self.bounds.s[self.blocked]) if self.obstacle_on_hold else float(self.bounds.s[-1])
+        at_knot = self.obstacle_on_hold or self.waiting
+        return float(self.bounds.s[self.blocked]) if at_knot else float(self.bounds.s[-1])
 
     @property
     def stops(self) -> bool:
         """Whether the plan must stop before a block (one that is not the lane's end)."""
         return self.blocked is not None and not self.road_end
+
+    def stopping_at(self, s: float) -> LateralPlan:
+        """The plan stopping before the first knot at or beyond ``s`` [m] if that comes before its own
+        block (a line to wait at: :attr:`planner.decision.Decision.wait_at`)."""
+        knot = int(np.searchsorted(self.bounds.s, s))
+        own = self.bounds.s.shape[0] if self.blocked is None or self.road_end else self.blocked
+        if knot >= min(own, self.bounds.s.shape[0]):
+            return self
+        return replace(self, blocked=max(knot, 1), road_end=False, waiting=True)
 
 
 def lateral_stage(
@@ -256,17 +275,26 @@ def lateral_stage(
     boxes: FrenetBoxes,
     time_left: Callable[[], float | None],
     config: PlannerConfig = DEFAULT_CONFIG,
+    lane: Lane | None = None,
+    braking_share: float = 0.5,
 ) -> LateralPlan:
     """The path along the chosen ``candidate`` (its kept ``(s, d)`` [m]) clear of the static obstacles'
-    ``boxes``; the QP gets what ``time_left`` [s] (None: no limit) says is left of the budget."""
+    ``boxes``, within ``lane`` (default the problem's: a borrow's corridor, :mod:`planner.decision`), its
+    curvature within :func:`curvature_allowance` for ``braking_share``; the QP gets what ``time_left``
+    [s] (None: no limit) says is left of the budget."""
     s_c, d_c = candidate
+    corridor = problem.lane if lane is None else lane
     at = knots(ref, start, float(s_c[-1]), config.lateral)
     d_ref = np.interp(at, s_c, d_c)
-    attempt = _attempt(solver, ref, problem, start, at, d_ref, boxes, None, time_left, config)
+    attempt = _attempt(
+        solver, ref, problem, start, at, d_ref, boxes, None, time_left, config, corridor, braking_share
+    )
     if problem.options.lateral_margin > 0.0 and not attempt.better_than_unsolved():
         # Where the margin to the lane's edges leaves no room (a tight turn, a narrow passage), it is
         # dropped, as it is knot by knot where the lane is narrow (the margin to obstacles is kept).
-        relaxed = _attempt(solver, ref, problem, start, at, d_ref, boxes, 0.0, time_left, config)
+        relaxed = _attempt(
+            solver, ref, problem, start, at, d_ref, boxes, 0.0, time_left, config, corridor, braking_share
+        )
         if relaxed.rank() > attempt.rank():
             attempt = relaxed
     bounds, qp = attempt.bounds, attempt.qp

@@ -17,14 +17,15 @@ from dataclasses import dataclass, replace
 from shapely.geometry.base import BaseGeometry
 
 from planner.candidates import CandidateSet, generate_candidates
-from planner.collision import frenet_boxes
+from planner.collision import FrenetBoxes, frenet_boxes
 from planner.config import DEFAULT_CONFIG, PlannerConfig
+from planner.decision import KEEP_LANE, Decision, ReasonKind, decide, no_path
 from planner.ego import EgoFrenet, start_state
 from planner.fallback import fallback
 from planner.lane import corridor_width
 from planner.lateral import LateralPlan, lateral_stage
-from planner.problem import PlanningProblem
-from planner.reference import ReferenceLine, build_reference
+from planner.problem import Lane, PlanningProblem
+from planner.reference import FloatArray, ReferenceLine, build_reference
 from planner.result import NOT_RUN, CandidateStats, PlanDiagnostics, PlanResult, Status
 from planner.selection import choose_candidate
 from planner.speed import Profile, ProfileKind, SpeedPlan, speed_stage
@@ -43,26 +44,51 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
     """Plan a trajectory for ``problem``; never raises for a planning failure (only for invalid input)."""
     timer = StageTimer(problem.options.time_budget_ms, config.budget_reserve)
     solvers = thread_solvers(config)
-    options, vehicle = problem.options, problem.vehicle
     with timer.stage("reference"):
         ref = build_reference(problem.reference_line)
         start = start_state(ref, problem, config)
     with timer.stage("candidates"):
-        cands = generate_candidates(ref, problem.lane, problem.ego, vehicle, options, start=start)
         static = static_shapes(problem)
         boxes = frenet_boxes(ref, static, reach=corridor_width(problem, config))
-        choice = choose_candidate(cands, boxes, problem, config)
-        s_c, d_c, _ = cands.points(choice.best)
-    stats = CandidateStats(cands.count, int(cands.repaired.sum()), choice.collision_free)
-    run = _Run(ref, problem, start, static, cands, choice.best, stats, timer, config)
-    candidate = polyline_path(ref, s_c, d_c)
+        picked = _Picked.of(ref, problem, start, problem.lane, boxes, config)
+    run = _Run(ref, problem, start, static, picked.cands, picked.best, picked.stats, timer, config)
+    candidate = picked.path
     if reason := timer.overrun("candidates"):
         return run.fallback(reason, candidate, candidate)
 
     with timer.stage("lateral"):
         lateral = lateral_stage(
-            solvers.lateral, ref, problem, start, (s_c, d_c), boxes, timer.remaining_s, config
+            solvers.lateral, ref, problem, start, picked.offsets, boxes, timer.remaining_s, config
         )
+    with timer.stage("decision"):
+        decision = decide(ref, problem, start, lateral, static, boxes, picked.s_end, config)
+    run = replace(run, decision=decision)
+    if decision.corridor is not None and decision.boxes is not None:  # borrow the road
+        with timer.stage("candidates"):
+            borrow = _Picked.of(ref, problem, start, decision.corridor, decision.boxes, config)
+        if reason := timer.overrun("candidates"):
+            return run.fallback(reason, candidate, candidate)
+        with timer.stage("lateral"):
+            through = lateral_stage(
+                solvers.lateral,
+                ref,
+                problem,
+                start,
+                borrow.offsets,
+                decision.boxes,
+                timer.remaining_s,
+                config,
+                lane=decision.corridor,
+                braking_share=config.decision.urgent_braking_share if decision.urgent else 0.5,
+            )
+        if through.path is not None:
+            run = replace(run, cands=borrow.cands, best=borrow.best, stats=borrow.stats)
+            candidate, lateral = borrow.path, through
+        else:  # no path through the road from here: the lane plan stands
+            decision = no_path(decision)
+            run = replace(run, decision=decision)
+    elif decision.wait_at is not None:
+        lateral = lateral.stopping_at(decision.wait_at)
     run = replace(run, knots=lateral.knots)
     if lateral.path is None:
         return run.fallback(f"lateral QP failed: {lateral.info.status}", candidate, candidate, lateral.info)
@@ -71,7 +97,7 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
         return run.fallback(reason, path, candidate, lateral.info)
 
     with timer.stage("speed"):
-        speed = speed_stage(solvers.speed, ref, lateral, path, problem, start, config)
+        speed = speed_stage(solvers.speed, ref, lateral, path, problem, start, config, decision.passing)
     sqp = speed.solved
     if not sqp.info.usable:
         return run.fallback(
@@ -81,7 +107,7 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
         return run.fallback(reason, path, candidate, lateral.info, sqp.info)
 
     with timer.stage("trajectory"):
-        profile, traj, bad, note = _trajectory(ref, problem, path, speed, static)
+        profile, traj, bad, note = _trajectory(ref, problem, path, speed, static, decision.borrows)
     if reason := timer.overrun("trajectory"):
         return run.fallback(reason, path, candidate, lateral.info, sqp.info)
     if bad:
@@ -90,7 +116,43 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
         reason = f"the optimised trajectory breaks a check: {bad[0]}"
         return run.fallback(reason, path, candidate, lateral.info, sqp.info, planned=sqp)
     status: Status = "stopped" if lateral.stops else "ok"
-    return run.result(status, _message(lateral, start) + note, traj, lateral.info, sqp.info, profile.kind)
+    message = _message(lateral, start) + note
+    if decision.reason.kind not in (ReasonKind.LANE_FREE, ReasonKind.NO_ROAD):
+        message += f"; {decision.reason.message}"
+    return run.result(status, message, traj, lateral.info, sqp.info, profile.kind)
+
+
+@dataclass(frozen=True)
+class _Picked:
+    """The candidates in a lane (the problem's, or a borrow's corridor) and the one chosen."""
+
+    cands: CandidateSet
+    best: int
+    stats: CandidateStats
+    offsets: tuple[FloatArray, FloatArray]
+    path: Path
+
+    @classmethod
+    def of(
+        cls,
+        ref: ReferenceLine,
+        problem: PlanningProblem,
+        start: EgoFrenet,
+        lane: Lane,
+        boxes: FrenetBoxes,
+        config: PlannerConfig,
+    ) -> _Picked:
+        options, vehicle = problem.options, problem.vehicle
+        cands = generate_candidates(ref, lane, problem.ego, vehicle, options, start=start)
+        choice = choose_candidate(cands, boxes, problem, config)
+        s_c, d_c, _ = cands.points(choice.best)
+        stats = CandidateStats(cands.count, int(cands.repaired.sum()), choice.collision_free)
+        return cls(cands, choice.best, stats, (s_c, d_c), polyline_path(ref, s_c, d_c))
+
+    @property
+    def s_end(self) -> float:
+        """Where the chosen candidate ends [m]."""
+        return float(self.offsets[0][-1])
 
 
 def _trajectory(
@@ -99,18 +161,19 @@ def _trajectory(
     path: Path,
     speed: SpeedPlan,
     static: list[tuple[str, BaseGeometry]],
+    borrowing: bool,
 ) -> tuple[Profile, Trajectory, list[Violation], str]:
-    """The trajectory of the speed stage's profile along ``path`` and what it breaks; where full braking
-    replaced the SQP's profile and breaks a check (it is hit from behind), the SQP's profile if it passes
-    every check, with a note saying so."""
+    """The trajectory of the speed stage's profile along ``path`` and what it breaks (``borrowing``: the
+    footprint in the road, not the lane); where full braking replaced the SQP's profile and breaks a check
+    (it is hit from behind), the SQP's profile if it passes every check, with a note saying so."""
     dt = problem.options.dt
     profile = speed.profile
     traj = profile.sample(path, dt, ref, problem.vehicle)
-    bad = trajectory_violations(ref, problem, traj, static)
+    bad = trajectory_violations(ref, problem, traj, static, borrowing=borrowing)
     if bad and profile.kind is not ProfileKind.OPTIMISED:
         planned = Profile.optimised(speed.solved)
         kept = planned.sample(path, dt, ref, problem.vehicle)
-        if not trajectory_violations(ref, problem, kept, static):
+        if not trajectory_violations(ref, problem, kept, static, borrowing=borrowing):
             note = (
                 f" (up to {speed.solved.position_violation:.2f} m past a stop or an obstacle's headway:"
                 f" braking breaks a check, {bad[0]})"
@@ -147,6 +210,7 @@ class _Run:
     timer: StageTimer
     config: PlannerConfig
     knots: int = 0
+    decision: Decision = KEEP_LANE
 
     def fallback(
         self,
@@ -160,7 +224,16 @@ class _Run:
         """The fallback answer for ``reason`` (see :func:`planner.fallback.fallback`)."""
         with self.timer.stage("fallback"):
             out = fallback(
-                reason, path, candidate, self.ref, self.problem, self.start, self.static, planned, self.config
+                reason,
+                path,
+                candidate,
+                self.ref,
+                self.problem,
+                self.start,
+                self.static,
+                planned,
+                self.config,
+                self.decision.borrows,
             )
         return self.result(
             "fallback", out.message, out.trajectory, lateral, speed, out.profile, out.violations
@@ -179,7 +252,7 @@ class _Run:
         """The answer, its diagnostics timed up to now."""
         timing = self.timer.timing_ms()
         diag = PlanDiagnostics(
-            self.stats, lateral, speed, timing, self.ref.size, self.knots, self.best, profile
+            self.stats, lateral, speed, timing, self.ref.size, self.knots, self.best, profile, self.decision
         )
         cands = self.cands if self.problem.options.return_candidates else None
         return PlanResult(status, message, traj, cands, diag, violations)

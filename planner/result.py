@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from planner.candidates import CandidateSet
+from planner.decision import KEEP_LANE, Decision
 from planner.speed import ProfileKind
 from planner.trajectory import Trajectory
 from planner.validation import Violation
@@ -42,6 +43,7 @@ class PlanDiagnostics:
         knots: knots of the lateral QP (0 when it did not run).
         chosen_candidate: index of the candidate followed.
         speed_profile: the speed profile the trajectory samples: the SQP's, or an analytic one.
+        decision: the lane decision: keep the lane or borrow the road beyond it, and why.
     """
 
     candidates: CandidateStats
@@ -52,6 +54,7 @@ class PlanDiagnostics:
     knots: int
     chosen_candidate: int | None
     speed_profile: ProfileKind
+    decision: Decision = KEEP_LANE
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ for the diagnostics.
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -209,13 +210,15 @@ def speed_stage(
     problem: PlanningProblem,
     start: EgoFrenet,
     config: PlannerConfig = DEFAULT_CONFIG,
+    passing: Collection[str] = (),
 ) -> SpeedPlan:
-    """The speed profile along the lateral stage's ``path`` (see the module docstring)."""
+    """The speed profile along the lateral stage's ``path`` (see the module docstring); the moving
+    obstacles ``passing`` overtakes are not followed (:func:`planner.st_bounds.space_time_bounds`)."""
     cfg = config.speed
     steps, dt = profile_grid(problem.options, cfg)
     s_stop = stop_position(ref, path, lateral, config.stop_gap, problem.vehicle.front_extent)
     t = np.arange(steps + 1, dtype=np.float64) * dt
-    bounds = space_time_bounds(ref, path, problem, t, start.s, config)
+    bounds = space_time_bounds(ref, path, problem, t, start.s, config, passing)
     jerk = cfg.emergency_jerk if lateral.stops else cfg.jerk
     speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config)
     if max(speed.speed_violation, speed.position_violation) > cfg.slack and jerk < cfg.emergency_jerk:
