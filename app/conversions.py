@@ -35,6 +35,7 @@ from app.models.planning import (
 from planner import goal as pg
 from planner import problem as pp
 from planner.candidates import CandidateSet
+from planner.decision import BlockKind, Decision, LaneChoice, ReasonKind
 from planner.ego import EgoFrenet
 from planner.frenet import FrenetPoints
 from planner.reference import ReferenceLine
@@ -230,6 +231,24 @@ _POINT_FIELDS = tuple(name for name in TrajectoryPoint.model_fields if name != "
 _CAR_FIELDS = (*_POINT_FIELDS, "steering_angle")
 
 
+def decision_data(decision: Decision) -> dict[str, Any]:
+    """The lane decision as the JSON data of :class:`~app.models.plan.LaneDecision` (fields that do not
+    apply left out)."""
+    r = decision.reason
+    reason: dict[str, Any] = {"kind": ReasonKind(r.kind).value, "message": r.message}
+    if r.block is not None:
+        reason["block"] = BlockKind(r.block).value
+    for name in ("obstacle_id", "oncoming_id", "side"):
+        if getattr(r, name) is not None:
+            reason[name] = str(getattr(r, name))
+    for name in ("s", "t"):
+        if getattr(r, name) is not None:
+            value = float(getattr(r, name))
+            _require_finite(f"the decision's {name}", value)
+            reason[name] = value
+    return {"lane": LaneChoice(decision.lane).value, "reason": reason}
+
+
 def plan_data(result: PlanResult, request_ms: Mapping[str, float]) -> dict[str, Any]:
     """The answer to :func:`planner.pipeline.plan`'s ``result`` as the JSON data of
     :class:`~app.models.plan.PlanResponse` (plain lists and dicts built from the arrays, ready for
@@ -274,6 +293,7 @@ def plan_data(result: PlanResult, request_ms: Mapping[str, float]) -> dict[str, 
             "solve_time_ms": float(diag.speed.solve_time_ms),
             "profile": ProfileKind(diag.speed_profile).value,
         },
+        "decision": decision_data(diag.decision),
         "timing_ms": dict(zip(STAGES, timing, strict=True)),
         "request": {name: float(request_ms[name]) for name in RequestTiming.model_fields},
     }
