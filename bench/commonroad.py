@@ -2,9 +2,11 @@
 a markdown table (asserts nothing; also written to ``bench/results/commonroad.md``).
 
 Scenarios: the planning requests ``tests/data/commonroad/*.json`` (converted from the CommonRoad
-benchmark by the shared reference converter; ``index.json`` beside them gives each goal), or with
-``--xml DIR`` the CommonRoad XML files converted by :mod:`planner_tools.commonroad` (needs the ``commonroad``
-extra). Each is driven by :func:`planner_tools.sim.simulate` with a replan every 0.1 s until the goal, a
+benchmark by the shared reference converter; ``index.json`` beside them gives each goal) — with
+``--road``, the same requests with the whole road beyond the lane, ``tests/data/commonroad-road/*.json``
+(same goals), so that the plans may borrow it —, or with ``--xml DIR`` the CommonRoad XML files converted
+by :mod:`planner_tools.commonroad` (needs the ``commonroad`` extra; their ``road`` kept only with
+``--road``). Each is driven by :func:`planner_tools.sim.simulate` with a replan every 0.1 s until the goal, a
 collision or ``--duration`` simulated seconds (default 35 s).
 
 Goal: the scenario's goal region as an arc length ``s_min`` on the reference; a scenario whose goal is a
@@ -19,7 +21,8 @@ kinematic single-track feasibility check of vehicle type 2 (its position and ori
 its steering limits), as a CommonRoad solution of the driven motion would be judged.
 
 Columns: goal reached, collisions (sub-steps whose footprint hits an obstacle), min clearance of the
-footprint to any obstacle [m], the farthest a footprint corner got outside the lane [m] (≤ 0: inside),
+footprint to any obstacle [m], the farthest a footprint corner got outside the lane [m] (≤ 0: inside)
+and with ``--road`` outside the road, the cycles that borrowed the road (``diagnostics.decision``),
 median / max wall time of one ``plan`` call [ms], replan cycles, the plans' status counts (ok / stopped /
 fallback / error), how the run ended, the distance driven, and with ``--feasibility`` the feasible
 transitions.
@@ -53,6 +56,7 @@ from planner_tools.sim import Goal, SimResult, simulate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 REQUESTS = ROOT / "tests" / "data" / "commonroad"
+ROAD_REQUESTS = ROOT / "tests" / "data" / "commonroad-road"
 RESULTS = ROOT / "bench" / "results"
 #: share of the time allowed that a time-only goal's distance is planned for
 SURVIVAL_SHARE = 0.6
@@ -84,8 +88,14 @@ def scenario_goal(conv: Conversion, duration: float) -> float:
     return float(min(end, s_ego + speed * duration * SURVIVAL_SHARE))
 
 
-def run_one(path: Path, duration: float, vehicle: str = "request", feasibility: bool = False) -> Row:
+def run_one(
+    path: Path, duration: float, vehicle: str = "request", feasibility: bool = False, road: bool = False
+) -> Row:
     conv = load(path)
+    if path.parent == ROAD_REQUESTS and (REQUESTS / path.name).exists():  # the goals of the same scenes
+        conv = replace(conv, goal=load(REQUESTS / path.name).goal)
+    if not road and "road" in conv.request:
+        conv = replace(conv, request={k: v for k, v in conv.request.items() if k != "road"})
     if vehicle != "request":
         made = car_vehicle if vehicle == "car" else point_vehicle
         conv = replace(conv, request={**conv.request, "vehicle": made(conv.request["vehicle"])})
@@ -112,21 +122,33 @@ def _percent(feasible: list[bool]) -> str:
     return f"{100.0 * sum(feasible) / max(len(feasible), 1):.1f} %"
 
 
-def table(rows: list[Row]) -> str:
+def borrowed(result: SimResult) -> int:
+    """Cycles whose plan borrowed the road beyond the lane."""
+    return sum(step.decision is not None and step.decision.borrows for step in result.steps)
+
+
+def table(rows: list[Row], road: bool = False) -> str:
     judged = any(r.feasible is not None for r in rows)
-    head = (
-        "| scenario | goal reached | collisions | min clearance [m] | lane departure [m] | plan median [ms] "
-        "| plan max [ms] | steps | ok / stopped / fallback / error | end | driven [m] / goal [m] |"
+    head = "| scenario | goal reached | collisions | min clearance [m] | lane departure [m] |"
+    head += " road departure [m] | borrowed |" if road else ""
+    head += (
+        " plan median [ms] | plan max [ms] | steps | ok / stopped / fallback / error | end "
+        "| driven [m] / goal [m] |"
     )
     head += " feasible transitions |" if judged else ""
-    lines = [head, "|" + "---|" * (12 if judged else 11)]
+    lines = [head, "|" + "---|" * (11 + 2 * road + judged)]
     for r in rows:
         m = r.result.metrics
         c = m.status_counts
         start = float(r.result.motion.s[0])
         line = (
             f"| {r.name} | {'yes' if m.goal_reached else 'no'} | {m.collisions} | {_fmt(m.min_clearance)} "
-            f"| {m.max_lane_departure:.2f} | {m.planning_ms['median']:.0f} | {m.planning_ms['max']:.0f} "
+            f"| {m.max_lane_departure:.2f} |"
+        )
+        if road:
+            line += f" {m.max_road_departure:.2f} | {borrowed(r.result)} |"
+        line += (
+            f" {m.planning_ms['median']:.0f} | {m.planning_ms['max']:.0f} "
             f"| {m.steps} | {c['ok']} / {c['stopped']} / {c['fallback']} / {c['error']} | {m.termination} "
             f"| {m.final_s - start:.0f} / {r.goal_s - start:.0f} |"
         )
@@ -135,7 +157,11 @@ def table(rows: list[Row]) -> str:
     hits = sum(r.result.metrics.collisions > 0 for r in rows)
     departed = sum(r.result.metrics.max_lane_departure > 1e-3 for r in rows)
     lines.append("")
-    summary = f"{reached}/{len(rows)} goals reached, {hits} runs with a collision, {departed} off the lane."
+    summary = f"{reached}/{len(rows)} goals reached, {hits} runs with a collision, {departed} off the lane"
+    if road:
+        off_road = sum(r.result.metrics.max_road_departure > 1e-3 for r in rows)
+        summary += f", {off_road} off the road"
+    summary += "."
     if judged:
         every = [f for r in rows for f in (r.feasible or [])]
         clean = [f for r in rows if r.result.metrics.collisions == 0 for f in (r.feasible or [])]
@@ -161,22 +187,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--feasibility", action="store_true", help="judge the driven transitions with CommonRoad's checker"
     )
+    parser.add_argument(
+        "--road", action="store_true", help="with the whole road beyond the lane (see the module docstring)"
+    )
     args = parser.parse_args(argv)
 
+    suffix = "_road" if args.road else ""
     if args.xml is None:
-        paths = sorted(p for p in REQUESTS.glob("*.json") if p.name != "index.json")
-        source = f"requests in {REQUESTS.relative_to(ROOT)}"
-        out = args.out or RESULTS / "commonroad.md"
+        folder = ROAD_REQUESTS if args.road else REQUESTS
+        paths = sorted(p for p in folder.glob("*.json") if p.name != "index.json")
+        source = f"requests in {folder.relative_to(ROOT)}"
+        out = args.out or RESULTS / f"commonroad{suffix}.md"
     else:
         paths = sorted(args.xml.glob("*.xml"))
         source = f"CommonRoad XML in {args.xml}, converted by planner_tools.commonroad"
-        out = args.out or RESULTS / "commonroad_xml.md"
+        out = args.out or RESULTS / f"commonroad_xml{suffix}.md"
     if args.only:
         paths = [p for p in paths if p.stem in set(args.only)]
     rows: list[Row] = []
     t0 = time.perf_counter()
     for path in paths:
-        row = run_one(path, args.duration, args.vehicle, args.feasibility)
+        row = run_one(path, args.duration, args.vehicle, args.feasibility, args.road)
         m = row.result.metrics
         print(
             f"{row.name}: {m.termination} after {m.sim_time:.1f} s sim, {m.steps} steps, "
@@ -185,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         rows.append(row)
     total = time.perf_counter() - t0
-    text = table(rows)
+    text = table(rows, args.road)
     cpu = os.cpu_count()
     header = (
         f"# Closed loop on CommonRoad scenarios\n\n"

@@ -1,7 +1,8 @@
 """Record the `/v1/plan` answers of a fixed set of requests, or compare them with a recording.
 
 For refactorings that must not change behaviour: record before, compare after. The requests are every
-golden regression request, every CommonRoad request under ``tests/data/commonroad/`` and the demo
+golden regression request, every CommonRoad request under ``tests/data/commonroad/`` and, with the whole
+road (``road``), under ``tests/data/commonroad-road/``, and the demo
 (``GET /v1/demo``); they are posted to the app in-process, so the HTTP layer is part of what is compared.
 
     python bench/compare_answers.py record /tmp/before.json
@@ -39,9 +40,10 @@ def requests() -> Iterator[tuple[str, Any]]:
     for path in sorted((ROOT / "tests/regression/requests").glob("*.json")):
         if not path.name.endswith(".expect.json"):
             yield f"regression/{path.stem}", json.loads(path.read_text())
-    for path in sorted((ROOT / "tests/data/commonroad").glob("*.json")):
-        if path.name != "index.json":
-            yield f"commonroad/{path.stem}", json.loads(path.read_text())
+    for folder in ("commonroad", "commonroad-road"):
+        for path in sorted((ROOT / "tests/data" / folder).glob("*.json")):
+            if path.name != "index.json":
+                yield f"{folder}/{path.stem}", json.loads(path.read_text())
 
 
 def record() -> dict[str, Any]:
