@@ -13,7 +13,8 @@ changes no answer).
 ``compare`` prints, per request, whether status and message are the same and the largest absolute
 difference of any number of the trajectory and candidates, and the largest of all; the exit status is 1
 when a status, a message, a shape or a number differs by more than ``--tolerance`` (default 1e-9).
-Wall times (``timing_ms``, ``solve_time_ms``) are left out: they differ on every run. So are
+Wall times (``timing_ms``, ``solve_time_ms``, the request's ``waited_ms`` and ``ran_ms``) are left out:
+they differ on every run. So are
 ``--ignore`` keys (dotted paths, e.g. ``answer.diagnostics.speed``) whose meaning a change fixed
 on purpose.
 """
@@ -32,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 #: keys whose values are wall times
-TIMES = frozenset({"timing_ms", "solve_time_ms", "setup_time_ms"})
+TIMES = frozenset({"timing_ms", "solve_time_ms", "setup_time_ms", "waited_ms", "ran_ms"})
 
 
 def requests() -> Iterator[tuple[str, Any]]:
@@ -72,8 +73,9 @@ def _walk(a: Any, b: Any, where: str, ignore: set[str]) -> Iterator[tuple[str, f
     if where.rsplit(".", 1)[-1] in TIMES or where in ignore:
         return
     if isinstance(a, dict) and isinstance(b, dict):
-        if a.keys() != b.keys():
-            yield f"{where} keys {sorted(set(a) ^ set(b))}", None
+        ignored = {key for key in a.keys() | b.keys() if (f"{where}.{key}" if where else key) in ignore}
+        if a.keys() - ignored != b.keys() - ignored:
+            yield f"{where} keys {sorted((set(a) ^ set(b)) - ignored)}", None
         for key in a.keys() & b.keys():
             yield from _walk(a[key], b[key], f"{where}.{key}" if where else key, ignore)
     elif isinstance(a, list) and isinstance(b, list):

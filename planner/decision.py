@@ -241,7 +241,8 @@ def decide(
         if conflict is not None:
             mover, t = conflict
             wait = Reason(ReasonKind.ONCOMING, reason.block, reason.obstacle_id, reason.s, t, mover, side)
-            wait_at = corridor.start - _min_ramp(problem, config)
+            # before a block it stops a swing-out's length short; behind a slow vehicle it follows
+            wait_at = corridor.start - _min_ramp(problem, config) if stops else -np.inf
             return Decision(LaneChoice.KEEP, wait, wait_at=wait_at if wait_at > start.s else None)
     choice = LaneChoice.BORROW_LEFT if side == "left" else LaneChoice.BORROW_RIGHT
     v0, decel = problem.ego.speed, problem.vehicle.max_deceleration

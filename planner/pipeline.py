@@ -117,8 +117,8 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
         return run.fallback(reason, path, candidate, lateral.info, sqp.info, planned=sqp)
     status: Status = "stopped" if lateral.stops else "ok"
     message = _message(lateral, start) + note
-    if decision.reason.kind not in (ReasonKind.LANE_FREE, ReasonKind.NO_ROAD):
-        message += f"; {decision.reason.message}"
+    if decision.borrows or (lateral.stops and decision.reason.kind is not ReasonKind.NO_ROAD):
+        message += f"; {decision.reason.message}"  # why it leaves the lane, or why it stops in it
     return run.result(status, message, traj, lateral.info, sqp.info, profile.kind)
 
 

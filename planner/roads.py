@@ -125,3 +125,24 @@ def hairpin(radius: float, *, leg: float = 40.0, step: float = 0.5, right: bool 
     """A U-turn of ``radius`` [m] between two legs of ``leg`` [m], turning right (or left)."""
     points = u_turn(radius=radius, leg=leg, step=step)
     return points * np.array([1.0, -1.0]) if right else points
+
+
+def wide_u_turn_problem() -> PlanningProblem:
+    """A left U-turn of radius 7 m whose lane a parked car blocks at the turn's start, on a road whose
+    inside (the opposite lanes and a shoulder, 8.75 m from the centre line) is wider than the radius,
+    for a vehicle that turns at a radius of 3.3 m (CommonRoad's cars' 0.3 1/m): the corridor a borrow
+    opens there reaches beyond the centre of curvature."""
+    reference = u_turn(radius=7.0, leg=40.0, step=1.0)
+    vehicle = Vehicle(max_curvature=0.3)
+    parked = (box("parked", 3.0, 0.0, 4.5, 2.0),)
+    problem = two_lane_problem(reference, speed=5.0, obstacles=parked, vehicle=vehicle)
+    ego = Ego(x=-25.0, y=0.0, heading=0.0, speed=5.0)
+    return PlanningProblem(
+        problem.reference_line,
+        problem.lane,
+        ego,
+        parked,
+        vehicle,
+        problem.options,
+        road=Road(5.0 * HALF_LANE, HALF_LANE),
+    )

@@ -51,11 +51,9 @@ from planner.problem import (
     Lane,
     PlanningProblem,
     PolygonObstacle,
-    Road,
-    Vehicle,
 )
 from planner.reference import ReferenceLine, build_reference
-from planner.roads import HALF_LANE, box, demo_problem, two_lane_problem, u_turn
+from planner.roads import demo_problem, wide_u_turn_problem
 from planner.validation import folds_back
 from planner_tools.records import METRIC_ROWS
 from planner_tools.sim import SimResult, obstacle_outlines
@@ -380,21 +378,10 @@ def candidates_figure(out: Path, *, num_candidates: int = 40, seed: int = 0) -> 
     return out
 
 
-def road_candidates_problem() -> PlanningProblem:
-    """A left U-turn of radius 7 m whose lane a parked car blocks at the turn's start, on a road whose
-    inside (the opposite lanes and a shoulder, 8.75 m from the centre line) is wider than the radius,
-    for a vehicle that turns at a radius of 3.3 m (CommonRoad's cars' 0.3 1/m)."""
-    reference = u_turn(radius=7.0, leg=40.0, step=1.0)
-    vehicle = Vehicle(max_curvature=0.3)
-    parked = (box("parked", 3.0, 0.0, 4.5, 2.0),)
-    problem = two_lane_problem(reference, speed=5.0, obstacles=parked, vehicle=vehicle)
-    return replace(problem, road=Road(5.0 * HALF_LANE, HALF_LANE), ego=replace(problem.ego, x=-25.0))
-
-
 def road_candidates_figure(out: Path, *, num_candidates: int = 40, seed: int = 0) -> Path:
     """Draw Algorithm 4 vs Algorithm 5 candidates of the corridor the lane decision borrows on
-    :func:`road_candidates_problem` into ``out`` (PNG)."""
-    problem = road_candidates_problem()
+    :func:`planner.roads.wide_u_turn_problem` into ``out`` (PNG)."""
+    problem = wide_u_turn_problem()
     problem = replace(problem, options=replace(problem.options, num_candidates=num_candidates, seed=seed))
     ref = build_reference(problem.reference_line)
     decision = plan(problem).diagnostics.decision
