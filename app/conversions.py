@@ -17,7 +17,7 @@ import numpy as np
 
 from app.models.candidates import CandidatesDiagnostics
 from app.models.goal import Goal, GoalCircle, GoalDisc, GoalPolygon
-from app.models.plan import STAGES, RequestTiming, TrajectoryPoint
+from app.models.plan import STAGES, DecisionReason, RequestTiming, TrajectoryPoint
 from app.models.planning import (
     AnyObstacle,
     Circle,
@@ -236,16 +236,15 @@ def decision_data(decision: Decision) -> dict[str, Any]:
     apply left out)."""
     r = decision.reason
     reason: dict[str, Any] = {"kind": ReasonKind(r.kind).value, "message": r.message}
-    if r.block is not None:
-        reason["block"] = BlockKind(r.block).value
-    for name in ("obstacle_id", "oncoming_id", "side"):
-        if getattr(r, name) is not None:
-            reason[name] = str(getattr(r, name))
-    for name in ("s", "t"):
-        if getattr(r, name) is not None:
-            value = float(getattr(r, name))
+    for name in DecisionReason.model_fields:  # in the model's order, as it writes them
+        value = getattr(r, name, None)
+        if name in reason or value is None:
+            continue
+        if name in ("s", "t"):
             _require_finite(f"the decision's {name}", value)
-            reason[name] = value
+            reason[name] = float(value)
+        else:
+            reason[name] = BlockKind(value).value if name == "block" else str(value)
     return {"lane": LaneChoice(decision.lane).value, "reason": reason}
 
 

@@ -64,9 +64,9 @@ class Corridor(Lane):
         """How much of the road beyond the lane is open at arc lengths ``s`` [m]: 1 over ``[start, end]``,
         0 beyond the ramps, linear on them."""
         s_arr = np.asarray(s, dtype=float)
-        rising = (s_arr - (self.start - self.ramp_in)) / max(self.ramp_in, 1e-9)
-        falling = ((self.end + self.ramp_out) - s_arr) / max(self.ramp_out, 1e-9)
-        return np.asarray(np.clip(np.minimum(rising, falling), 0.0, 1.0))
+        rising = _ramp(s_arr - self.start, self.ramp_in)
+        falling = _ramp(self.end - s_arr, self.ramp_out)
+        return np.asarray(np.minimum(rising, falling))
 
     def widths(self, ref: ReferenceLine, s: Any) -> tuple[FloatArray, FloatArray]:
         """The lane's widths [m] at ``s`` [m], the borrowed side's opened towards the road's edge."""
@@ -76,6 +76,13 @@ class Corridor(Lane):
         if self.side == "left":
             return left + open_ * np.maximum(road_left - left, 0.0), right
         return left, right + open_ * np.maximum(road_right - right, 0.0)
+
+
+def _ramp(inside: FloatArray, length: float) -> FloatArray:
+    """1 where ``inside`` [m] ≥ 0, 0 where it is ``−length`` or less, linear between (a step for 0)."""
+    if length <= 0.0:
+        return np.where(inside >= 0.0, 1.0, 0.0)
+    return np.asarray(np.clip(1.0 + inside / length, 0.0, 1.0))
 
 
 def corridor_width(
