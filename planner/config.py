@@ -127,6 +127,9 @@ class DecisionConfig:
     check_step: float = 0.2
     #: time headway kept to an overtaken vehicle before coming back in front of it [s]
     pass_headway: float = 1.0
+    #: the borrowed space whose traffic the vehicle waits for reaches this far beyond the half width of
+    #: the farthest offset it needs there [m]
+    band_spare: float = 1.5
     #: a borrow round a block closer than a stop at half the deceleration may bend the path as sharply
     #: as braking at this share of the deceleration allows (full braking less its jerk-limited onset) [-]
     urgent_braking_share: float = 0.75

@@ -237,7 +237,8 @@ def decide(
             return _keep(ReasonKind.NO_PATH, reason)
         if _ends_beyond(ref, problem, corridor, at, config):
             return _keep(ReasonKind.NO_RETURN, reason)
-        conflict = _oncoming(ref, problem, start, corridor, passing, config)
+        band = _needed(problem, through, span, side, config)
+        conflict = _oncoming(ref, problem, start, corridor, band, passing, config)
         if conflict is not None:
             mover, t = conflict
             wait = Reason(ReasonKind.ONCOMING, reason.block, reason.obstacle_id, reason.s, t, mover, side)
@@ -436,6 +437,18 @@ def _room_to_swing(
     return bool(s - start.s >= np.sqrt(2.0 * need / kappa))
 
 
+def _needed(
+    problem: PlanningProblem, bounds: LateralBounds, span: _Span, side: Side, config: PlannerConfig
+) -> float:
+    """How far into the road the vehicle needs to go [m] (an offset, signed): the farthest the corridor's
+    ``bounds`` push its planned point over the span, its half width and ``band_spare`` beyond."""
+    part = slice(span.first, span.last + 1)
+    reach = 0.5 * problem.vehicle.width + config.decision.band_spare
+    if side == "left":
+        return float(np.max(bounds.lower[part])) + reach
+    return float(np.min(bounds.upper[part])) - reach
+
+
 def _ends_beyond(
     ref: ReferenceLine, problem: PlanningProblem, corridor: Corridor, at: FloatArray, config: PlannerConfig
 ) -> bool:
@@ -543,6 +556,7 @@ def _oncoming(
     problem: PlanningProblem,
     start: EgoFrenet,
     corridor: Corridor,
+    band: float,
     passing: frozenset[str],
     config: PlannerConfig,
 ) -> tuple[str, float] | None:
@@ -550,7 +564,9 @@ def _oncoming(
     vehicle may be there, and from when [s]; None when it stays clear.
 
     The borrowed space: beyond the lane's edge on the corridor's side (its narrowest over the stretch)
-    into the road, along the corridor's open stretch and ramps, a vehicle length more either way. Where
+    into the road as far as the vehicle needs (to the offset ``band`` [m], :func:`_needed`; traffic
+    farther out, as in a junction's other lanes, is not in its way), along the corridor's open stretch
+    and ramps, a vehicle length more either way. Where
     the vehicle may be at time ``t``: its footprint (with ``obstacle_margin`` and ``stop_gap``) from its
     late position at ``t − time_margin`` to its earliest at ``t + time_margin`` (:func:`ego_times`), until
     the latest it leaves the space. So an oncoming vehicle conflicts where the two would meet in it, one
@@ -579,9 +595,9 @@ def _oncoming(
     s_min, s_max, d_min, d_max = frenet_extents(ref, near, states)  # (K, T)
     along = (s_max >= occupied_lo) & (s_min <= occupied_hi) & (occupied_lo <= occupied_hi)
     if corridor.side == "left":
-        across = (d_max > float(np.min(lane_left))) & (d_min < float(np.max(road_left)))
+        across = (d_max > float(np.min(lane_left))) & (d_min < min(float(np.max(road_left)), band))
     else:
-        across = (d_min < -float(np.min(lane_right))) & (d_max > -float(np.max(road_right)))
+        across = (d_min < -float(np.min(lane_right))) & (d_max > max(-float(np.max(road_right)), band))
     inside = along & across
     if not inside.any():
         return None

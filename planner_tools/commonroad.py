@@ -60,7 +60,7 @@ from typing import Any
 import numpy as np
 import shapely
 from numpy.typing import ArrayLike, NDArray
-from scipy.ndimage import gaussian_filter1d
+from scipy.ndimage import gaussian_filter1d, grey_closing
 
 from planner.problem import CAR_FIELDS
 from planner.reference import FloatArray
@@ -88,8 +88,11 @@ MIN_TARGET_SPEED = 5.0
 ROAD_BEYOND = 7.5
 #: step of the scan along the normal for the road's widths [m]
 ROAD_STEP = 0.1
-#: lanelets closer than this are one surface (their shared edges do not meet exactly) [m]
-SURFACE_GAP = 0.05
+#: lanelets closer than twice this are one surface (their shared edges do not meet exactly) [m]
+SURFACE_GAP = 0.25
+#: a road narrower than its neighbours on either side at this many consecutive points or fewer is a
+#: sliver of the map between lanelets, not a narrowing: it takes the narrower neighbour's width
+ROAD_SLIVER = 2
 #: lanelet types a vehicle does not drive on: they are not part of the road
 NOT_DRIVABLE = frozenset({"sidewalk", "crosswalk", "bicycleLane", "border", "restricted", "restricted_area"})
 #: vehicle of the shared requests
@@ -234,7 +237,8 @@ def surface_widths(
     """Road widths [m] left and right of each point (n, 2) of a line in driving order with lane widths
     ``left``, ``right`` [m]: from the lane's edge outwards along the line's normal, as far as ``surface``
     (a shapely geometry, the drivable area) goes on without a gap, at most ``beyond`` [m] beyond the
-    lane; never less than the lane."""
+    lane; never less than the lane. A dip at :data:`ROAD_SLIVER` points or fewer between wider
+    neighbours is filled (a morphological closing along the line)."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     tangent = np.gradient(pts, axis=0)
     tangent /= np.maximum(np.hypot(tangent[:, 0], tangent[:, 1]), 1e-12)[:, None]
@@ -248,13 +252,14 @@ def surface_widths(
         inside = shapely.contains_xy(surface, xy[..., 0], xy[..., 1])
         gap = np.where(inside.all(axis=1), offsets.shape[0], np.argmin(inside, axis=1))  # first off it
         extra = np.where(gap > 0, offsets[np.maximum(gap - 1, 0)], 0.0)
+        extra = grey_closing(extra, size=ROAD_SLIVER + 2, mode="nearest")
         out.append(lane + extra)
     return out[0], out[1]
 
 
 def drivable_surface(network: Any) -> Any:
-    """The union of the lanelets a vehicle may drive on (see :data:`NOT_DRIVABLE`), grown by
-    :data:`SURFACE_GAP` so that neighbours touch."""
+    """The union of the lanelets a vehicle may drive on (see :data:`NOT_DRIVABLE`), closed by
+    :data:`SURFACE_GAP` (grown, then shrunk back) so that neighbours touch."""
     polygons = []
     for la in network.lanelets:
         kinds = {getattr(k, "value", str(k)) for k in (la.lanelet_type or set())}
@@ -262,7 +267,7 @@ def drivable_surface(network: Any) -> Any:
             continue
         ring = np.vstack((la.left_vertices, la.right_vertices[::-1]))
         polygons.append(shapely.make_valid(shapely.Polygon(ring)).buffer(SURFACE_GAP))
-    return shapely.unary_union(polygons)
+    return shapely.unary_union(polygons).buffer(-SURFACE_GAP)
 
 
 def prediction_rows(
