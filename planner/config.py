@@ -123,8 +123,10 @@ class DecisionConfig:
     late_factor: float = 1.5
     #: ... and the window of the oncoming check is widened by this on either side [s]
     time_margin: float = 1.0
-    #: step of the oncoming check and of the slow vehicles' tracks [s]
+    #: step of the oncoming check [s] (at most twice the horizon)
     check_step: float = 0.2
+    #: step of the slow vehicles' tracks [s]
+    track_step: float = 0.5
     #: time headway kept to an overtaken vehicle before coming back in front of it [s]
     pass_headway: float = 1.0
     #: the borrowed space whose traffic the vehicle waits for reaches this far beyond the half width of

@@ -2,7 +2,7 @@
 
 Apollo's split: this decider turns what the lane plan met into bounds — a :class:`planner.lane.Corridor`
 (the lane widened to the road's edge on one side over an interval of arc length, with ramps in and out),
-the boxes of the vehicles it overtakes, a line to wait at — and the optimisers (candidates, lateral
+the swept boxes of the vehicles it overtakes, a line to wait at — and the optimisers (candidates, lateral
 QP, speed profile) consume them. It runs after the plan in the lane (candidates, choice, lateral stage):
 
 * **keep** the lane unless something blocks it: the lane plan stops before a block
@@ -10,25 +10,29 @@ QP, speed profile) consume them. It runs after the plan in the lane (candidates,
   included; a bend tighter than the vehicle can take within the lane; a lane narrower than the
   vehicle), or a moving obstacle ahead, too wide to pass within the lane, drives much slower than the
   target speed (``slow_share``, ``slow_margin``), or the ego is already outside its lane where the road
-  goes on (it comes back);
+  goes on (it comes back: ``returning``);
 * **borrow** the road on the side that gets past: a bend's outside; beside obstacles, the side whose
   corridor the vehicle fits through (the nearer to the reference if both). The interval is the lane's
   blocked knots (its lateral bounds with the obstacles of the whole road, each passed on its roomier side,
   no margin to the lane's edges) merged with blocks that follow closer than a return; a slow vehicle
-  blocks where it is swept from now until the vehicle, at its nominal speed, is a ``pass_headway`` ahead
-  of it. The ramps are ``ramp_time`` of driving long, at least ``min_ramp_lengths`` vehicle lengths;
-* only if the corridor's lateral bounds are free over the interval and its ramps, the manoeuvre ends
-  within the path (or the reference's end) and no moving obstacle other than those overtaken is in the
-  borrowed space — the road beyond the lane on that side over the interval and its ramps — from the
-  earliest the vehicle can get there until the latest it leaves it (:func:`ego_times`, widened by
-  ``time_margin``). Otherwise keep, and where a moving obstacle is the reason, stop a swing-out's length
-  before the block (:attr:`Decision.wait_at`) to go once it is clear.
+  blocks where it is swept from now until the vehicle, at its earliest, is a ``pass_headway`` ahead of it
+  (:func:`planner.traffic.slow_vehicle`). The ramps are ``ramp_time`` of driving long, at least
+  ``min_ramp_lengths`` vehicle lengths;
+* only if the corridor's lateral bounds are free over the interval and its ramps, an arc can take the
+  planned point out far enough before the block, the way back into the lane is within the path (or past
+  the reference's end) and no moving obstacle other than those overtaken is in the borrowed space — beyond
+  the lane on that side as far as the vehicle needs, over the interval and its ramps — where and while
+  the vehicle may be there (:func:`planner.traffic.oncoming`). Otherwise keep; where a moving obstacle
+  is the reason and the lane is blocked, stop a swing-out's length before the block
+  (:attr:`Decision.wait_at`) to go once it is clear; behind a slow vehicle, follow it.
 
-An ego already outside its lane keeps borrowing until it is back: it never waits in the road.
+An ego already outside its lane keeps borrowing until it is back: it never waits in the road. A borrow
+the lateral stage finds no path for is dropped for the lane plan (:func:`no_path`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -37,15 +41,16 @@ from numpy.typing import NDArray
 from shapely.geometry.base import BaseGeometry
 
 from planner.bounds import LateralBounds, lateral_bounds, roomier_left
-from planner.collision import FrenetBoxes, box_corners, frenet_boxes, prediction_at
+from planner.collision import FrenetBoxes, box_corners, frenet_boxes
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.ego import EgoFrenet
 from planner.frenet import to_frenet
 from planner.lane import Corridor, Side, corridor_width, lane_bounds
 from planner.lateral import LateralPlan, knots
-from planner.problem import DynamicObstacle, Lane, PlanningProblem, Road
+from planner.problem import Lane, PlanningProblem, Road
 from planner.reference import FloatArray, ReferenceLine
-from planner.st_bounds import frenet_extents, moving_obstacles
+from planner.speed import target_speed
+from planner.traffic import oncoming, slow_vehicle
 
 
 class LaneChoice(StrEnum):
@@ -160,6 +165,8 @@ class Decision:
         wait_at: where a kept lane stops, before a block [m] (a swing-out's length before it), or None.
         urgent: whether a borrow's block is closer than the vehicle stops braking at half its
             deceleration: the path may then bend as sharply as full braking allows.
+        sides: the obstacles a borrow passes on the borrowed side (id → passed on its left): those
+            reaching into the lane along the corridor's open stretch and ramps.
     """
 
     lane: LaneChoice
@@ -169,6 +176,7 @@ class Decision:
     passing: frozenset[str] = field(default_factory=frozenset)
     wait_at: float | None = None
     urgent: bool = False
+    sides: Mapping[str, bool] = field(default_factory=dict)
 
     @property
     def borrows(self) -> bool:
@@ -203,7 +211,7 @@ def decide(
         return _keep(ReasonKind.NO_ROAD, _what_blocks(ref, problem, at, lane_plan.blocked, lane_boxes))
     out_on = _outside_lane(ref, problem, road, config)
     stops = lane_plan.stops and lane_plan.blocked is not None
-    slow = None if stops else _slow_vehicle(ref, problem, start, at, config)
+    slow = None if stops else slow_vehicle(ref, problem, start, at, config)
     if not stops and out_on is None and slow is None:
         return KEEP_LANE
     boxes = frenet_boxes(ref, static, reach=corridor_width(problem, config, road=True))
@@ -214,10 +222,11 @@ def decide(
         first = min(lane_plan.blocked, at.shape[0] - 1)
         reason = _what_blocks(ref, problem, at, first, boxes)
     elif slow is not None:
+        reason = Reason(ReasonKind.PASSING, BlockKind.SLOW_VEHICLE, slow.obstacle_id, slow.s)
         if slow.swept is None:
-            return _keep(ReasonKind.NO_RETURN, slow.reason)
+            return _keep(ReasonKind.NO_RETURN, reason)
         boxes = _merged(boxes, slow.swept)
-        reason, passing = slow.reason, frozenset(slow.swept.ids)
+        passing = frozenset(slow.swept.ids)
     blocked = _blocked(ref, problem, _bounds(ref, problem, problem.lane, at, boxes, config), config)
     if slow is not None:
         first = int(np.argmax(blocked))  # the slow vehicle's swept box
@@ -238,7 +247,7 @@ def decide(
         if _ends_beyond(ref, problem, corridor, at, config):
             return _keep(ReasonKind.NO_RETURN, reason)
         band = _needed(problem, through, span, side, config)
-        conflict = _oncoming(ref, problem, start, corridor, band, passing, config)
+        conflict = oncoming(ref, problem, start, corridor, band, passing, config)
         if conflict is not None:
             mover, t = conflict
             wait = Reason(ReasonKind.ONCOMING, reason.block, reason.obstacle_id, reason.s, t, mover, side)
@@ -248,7 +257,9 @@ def decide(
     choice = LaneChoice.BORROW_LEFT if side == "left" else LaneChoice.BORROW_RIGHT
     v0, decel = problem.ego.speed, problem.vehicle.max_deceleration
     urgent = span.s_first - start.s < v0 * (v0 / decel)  # within the stop at half deceleration
-    return Decision(choice, reason, corridor, boxes, passing, urgent=bool(urgent))
+    passed = _passed(ref, problem, corridor, boxes)
+    sides = {ob_id: side == "left" for ob_id, on in zip(boxes.ids, passed, strict=True) if on}
+    return Decision(choice, reason, corridor, boxes, passing, urgent=bool(urgent), sides=sides)
 
 
 def no_path(decision: Decision) -> Decision:
@@ -353,7 +364,7 @@ class _Span:
 def _ramps(problem: PlanningProblem, config: PlannerConfig) -> tuple[float, float]:
     """The ramp into the road at the ego's speed and back at the target's [m], each at least the shortest."""
     shortest = _min_ramp(problem, config)
-    target = _target_speed(problem)
+    target = target_speed(problem)
     ramp_time = config.decision.ramp_time
     return max(shortest, problem.ego.speed * ramp_time), max(shortest, target * ramp_time)
 
@@ -408,14 +419,23 @@ def _corridor_blocked(
     out, else None: the obstacles reaching into the lane along its open stretch and ramps passed on the
     borrowed side, the others on their roomier side."""
     left_of = _roomier(ref, problem, corridor, at, boxes)
-    lo, hi = corridor.start - corridor.ramp_in, corridor.end + corridor.ramp_out
+    left_of = np.where(_passed(ref, problem, corridor, boxes), corridor.side == "left", left_of)
+    bounds = _bounds(ref, problem, corridor, at, boxes, config, left_of)
+    within = (at >= corridor.start - corridor.ramp_in) & (at <= corridor.end + corridor.ramp_out)
+    return None if np.any(_blocked(ref, problem, bounds, config) & within) else bounds
+
+
+def _passed(
+    ref: ReferenceLine, problem: PlanningProblem, corridor: Corridor, boxes: FrenetBoxes
+) -> NDArray[np.bool_]:
+    """Which obstacles a borrow passes on its side: those reaching into the lane along the corridor's
+    open stretch and ramps."""
     lane_left, lane_right = problem.lane.widths(ref, 0.5 * (boxes.s_min + boxes.s_max))
     in_lane = (boxes.d_min <= lane_left) & (boxes.d_max >= -lane_right)
-    passed = (boxes.s_max >= lo) & (boxes.s_min <= hi) & in_lane
-    left_of = np.where(passed, corridor.side == "left", left_of)
-    bounds = _bounds(ref, problem, corridor, at, boxes, config, left_of)
-    within = (at >= lo) & (at <= hi)
-    return None if np.any(_blocked(ref, problem, bounds, config) & within) else bounds
+    along = (boxes.s_max >= corridor.start - corridor.ramp_in) & (
+        boxes.s_min <= corridor.end + corridor.ramp_out
+    )
+    return np.asarray(along & in_lane, dtype=bool)
 
 
 def _room_to_swing(
@@ -477,7 +497,11 @@ def _side(
     best: tuple[float, Side] | None = None
     sides: tuple[Side, Side] = ("left", "right")
     part = slice(span.first, span.last + 1)
-    for side in sides:
+    lane_widths = problem.lane.widths(ref, at[part])
+    road_widths = road.widths(ref, at[part])
+    for side, lane_w, road_w in zip(sides, lane_widths, road_widths, strict=True):
+        if not np.any(road_w > lane_w):  # no road beyond the lane on this side there
+            continue
         bounds = _corridor_blocked(
             ref, problem, _corridor(problem, road, side, span, None, config), at, boxes, config
         )
@@ -498,168 +522,3 @@ def _merged(a: FrenetBoxes, b: FrenetBoxes) -> FrenetBoxes:
         np.concatenate((a.d_min, b.d_min)),
         np.concatenate((a.d_max, b.d_max)),
     )
-
-
-def _target_speed(problem: PlanningProblem) -> float:
-    """The speed the plan aims at [m/s] (:func:`planner.speed.target_speed`)."""
-    target = problem.options.target_speed
-    return problem.vehicle.max_speed if target is None else min(target, problem.vehicle.max_speed)
-
-
-def ego_times(
-    ref: ReferenceLine, problem: PlanningProblem, start: EgoFrenet, s: FloatArray, config: PlannerConfig
-) -> tuple[FloatArray, FloatArray]:
-    """The earliest and a late time [s] the planned point can be at arc lengths ``s`` [m] ahead of it.
-
-    Earliest: full acceleration from the ego's speed up to the faster of it and the target speed. Late:
-    ``nominal_acceleration_share`` of it up to the target speed, never faster than the reference's
-    curvature allows (``√(limit_margin · a_lat,max / |κ|)``) nor slower than ``nominal_floor_speed``,
-    the time stretched by ``late_factor``.
-    """
-    v0, a = max(problem.ego.speed, 0.0), problem.vehicle.max_acceleration
-    target = _target_speed(problem)
-    ahead = np.maximum(np.asarray(s, dtype=float) - start.s, 0.0)
-    fast = max(v0, target)
-    reach_fast = max(fast**2 - v0**2, 0.0) / (2.0 * a)  # distance until full speed
-    accelerating = (np.sqrt(v0**2 + 2.0 * a * np.minimum(ahead, reach_fast)) - v0) / a
-    early = accelerating + np.maximum(ahead - reach_fast, 0.0) / max(fast, 1e-9)
-    cfg = config.decision
-    grid = np.linspace(0.0, float(np.max(ahead, initial=0.0)) + 1e-9, 200)
-    kappa = np.abs(ref.kappa_at(start.s + grid))
-    with np.errstate(divide="ignore"):
-        curve = np.sqrt(config.limit_margin * problem.vehicle.max_lateral_acceleration / kappa)
-    gentle = np.sqrt(v0**2 + 2.0 * cfg.nominal_acceleration_share * a * grid)
-    speed = np.maximum(np.minimum(np.minimum(gentle, curve), target), cfg.nominal_floor_speed)
-    pace = 1.0 / speed
-    t_grid = np.concatenate(([0.0], np.cumsum(0.5 * (pace[1:] + pace[:-1]) * np.diff(grid))))
-    late = cfg.late_factor * np.interp(ahead, grid, t_grid)
-    return np.asarray(early), np.asarray(late)
-
-
-def _near_movers(
-    ref: ReferenceLine, movers: list[DynamicObstacle], t: FloatArray, s_lo: float, s_hi: float, reach: float
-) -> tuple[list[DynamicObstacle], list[FloatArray]]:
-    """The movers whose predicted centres come within ``reach`` [m] plus their own size of the reference
-    between ``s_lo`` and ``s_hi`` [m] at some time of ``t`` [s], with their states then."""
-    states = [prediction_at(ob, t) for ob in movers]
-    pts = np.concatenate(states)[:, :2]
-    dist, idx = ref.tree.query(pts)
-    size = np.repeat([np.hypot(ob.length, ob.width) for ob in movers], t.shape[0])
-    s_near = ref.s[idx]
-    close = (dist <= reach + size) & (s_near >= s_lo - reach) & (s_near <= s_hi + reach)
-    near = np.flatnonzero(close.reshape(len(movers), -1).any(axis=1))
-    return [movers[k] for k in near], [states[k] for k in near]
-
-
-def _oncoming(
-    ref: ReferenceLine,
-    problem: PlanningProblem,
-    start: EgoFrenet,
-    corridor: Corridor,
-    band: float,
-    passing: frozenset[str],
-    config: PlannerConfig,
-) -> tuple[str, float] | None:
-    """The first moving obstacle (other than ``passing``) in the borrowed space where and while the
-    vehicle may be there, and from when [s]; None when it stays clear.
-
-    The borrowed space: beyond the lane's edge on the corridor's side (its narrowest over the stretch)
-    into the road as far as the vehicle needs (to the offset ``band`` [m], :func:`_needed`; traffic
-    farther out, as in a junction's other lanes, is not in its way), along the corridor's open stretch
-    and ramps, a vehicle length more either way. Where
-    the vehicle may be at time ``t``: its footprint (with ``obstacle_margin`` and ``stop_gap``) from its
-    late position at ``t − time_margin`` to its earliest at ``t + time_margin`` (:func:`ego_times`), until
-    the latest it leaves the space. So an oncoming vehicle conflicts where the two would meet in it, one
-    ahead and faster does not.
-    """
-    movers = [ob for ob in moving_obstacles(problem) if ob.id not in passing]
-    if not movers:
-        return None
-    v, cfg = problem.vehicle, config.decision
-    s_lo = corridor.start - corridor.ramp_in - v.length
-    s_hi = corridor.end + corridor.ramp_out + v.length
-    grid = np.linspace(start.s, max(s_hi, start.s + 1.0), 256)
-    early, late = ego_times(ref, problem, start, grid, config)
-    t = np.arange(0.0, float(late[-1]) + cfg.time_margin + cfg.check_step, cfg.check_step)
-    gap = config.obstacle_margin + config.stop_gap
-    ahead = np.interp(t + cfg.time_margin, early, grid) + v.front_extent + gap
-    behind = np.interp(t - cfg.time_margin, late, grid, left=start.s) - v.rear_extent - gap
-    occupied_lo, occupied_hi = np.maximum(behind, s_lo), np.minimum(ahead, s_hi)
-    span = np.linspace(s_lo, s_hi, 64)
-    lane_left, lane_right = problem.lane.widths(ref, span)
-    road_left, road_right = corridor.road.widths(ref, span)
-    reach = float(max(np.max(road_left), np.max(road_right)))
-    near, states = _near_movers(ref, movers, t, s_lo, s_hi, reach)
-    if not near:
-        return None
-    s_min, s_max, d_min, d_max = frenet_extents(ref, near, states)  # (K, T)
-    along = (s_max >= occupied_lo) & (s_min <= occupied_hi) & (occupied_lo <= occupied_hi)
-    if corridor.side == "left":
-        across = (d_max > float(np.min(lane_left))) & (d_min < min(float(np.max(road_left)), band))
-    else:
-        across = (d_min < -float(np.min(lane_right))) & (d_max > max(-float(np.max(road_right)), band))
-    inside = along & across
-    if not inside.any():
-        return None
-    first = np.where(inside.any(axis=1), np.argmax(inside, axis=1), inside.shape[1])
-    k = int(np.argmin(first))
-    return near[k].id, float(t[first[k]])
-
-
-@dataclass(frozen=True)
-class _SlowVehicle:
-    """A slow vehicle ahead: why it blocks (``reason``) and the box it sweeps until the vehicle is past
-    it (None: not within the horizon)."""
-
-    reason: Reason
-    swept: FrenetBoxes | None
-
-
-def _slow_vehicle(
-    ref: ReferenceLine, problem: PlanningProblem, start: EgoFrenet, at: FloatArray, config: PlannerConfig
-) -> _SlowVehicle | None:
-    """The nearest moving obstacle ahead within the path's knots ``at`` [m] that leaves no room to pass
-    it in the lane and drives much slower than the target speed (along the reference, over the horizon),
-    and the box it sweeps until the vehicle, at its earliest (:func:`ego_times`), is ``pass_headway`` of
-    its speed (at least ``stop_gap``) ahead of it."""
-    movers = moving_obstacles(problem)
-    if not movers:
-        return None
-    cfg, v = config.decision, problem.vehicle
-    horizon = problem.options.horizon_time
-    t = np.linspace(0.0, horizon, max(2, int(np.ceil(horizon / cfg.check_step)) + 1))
-    lane_left, lane_right = problem.lane.widths(ref, at)
-    near, _ = _near_movers(
-        ref, movers, t[:1], start.s, float(at[-1]), float(max(np.max(lane_left), np.max(lane_right)))
-    )
-    if not near:
-        return None
-    s_min, s_max, d_min, d_max = frenet_extents(ref, near, [prediction_at(ob, t) for ob in near])
-    mid = 0.5 * (s_min + s_max)
-    speed = (mid[:, -1] - mid[:, 0]) / horizon
-    target = _target_speed(problem)
-    slow = (speed < cfg.slow_share * target) & (speed < target - cfg.slow_margin)
-    left0, right0 = problem.lane.widths(ref, mid[:, 0])
-    need = v.width + 2.0 * problem.options.lateral_margin
-    no_room = np.maximum(left0 - d_max[:, 0], d_min[:, 0] + right0) < need
-    gap = np.maximum(cfg.pass_headway * np.maximum(speed, 0.0), config.stop_gap)
-    ahead = (s_max[:, 0] + gap >= start.s - v.rear_extent) & (s_min[:, 0] <= float(at[-1]))  # not passed
-    chosen = np.flatnonzero(slow & no_room & ahead)
-    if chosen.size == 0:
-        return None
-    k = int(chosen[np.argmin(s_min[chosen, 0])])
-    reason = Reason(ReasonKind.PASSING, BlockKind.SLOW_VEHICLE, near[k].id, float(s_min[k, 0]))
-    early, _ = ego_times(ref, problem, start, np.linspace(start.s, float(at[-1]), 400), config)
-    ego_s = np.interp(t, early, np.linspace(start.s, float(at[-1]), 400), right=np.inf)
-    past = np.flatnonzero(ego_s - v.rear_extent >= s_max[k] + gap[k])
-    if past.size == 0:
-        return _SlowVehicle(reason, None)
-    upto = slice(0, int(past[0]) + 1)
-    swept = FrenetBoxes(
-        (near[k].id,),
-        np.array([float(np.min(s_min[k, upto]))]),
-        np.array([float(np.max(s_max[k, upto])) + gap[k]]),
-        np.array([float(np.min(d_min[k, upto]))]),
-        np.array([float(np.max(d_max[k, upto]))]),
-    )
-    return _SlowVehicle(reason, swept)

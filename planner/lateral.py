@@ -16,10 +16,11 @@ offset and the speed profile stops before the block (:func:`hold_path`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.typing import NDArray
 
 from planner.bounds import LateralBounds, lateral_bounds, pass_left
 from planner.collision import FrenetBoxes, box_hits, footprint_extent
@@ -185,6 +186,7 @@ def _attempt(
     config: PlannerConfig,
     corridor: Lane,
     braking_share: float,
+    sides: Mapping[str, bool],
 ) -> _Attempt:
     """Bounds at knots ``at`` in ``corridor`` (``lane_margin`` [m] to its edges, default the options'
     margin) and the lateral QP on them, tracking the candidate's offsets ``d_ref`` [m]."""
@@ -197,7 +199,7 @@ def _attempt(
         vehicle,
         margin=options.lateral_margin,
         boxes=boxes,
-        left_of=pass_left(boxes, at, d_ref, lane.lower, lane.upper),
+        left_of=_sides(boxes, pass_left(boxes, at, d_ref, lane.lower, lane.upper), sides),
         heading_error=smoothed_slope(d_ref, at, config.lateral.heading_window),
         lane_margin=lane_margin,
     )
@@ -213,6 +215,14 @@ def _attempt(
         allowance = np.full(bounds.s.shape, config.lateral.retry_curvature_share * vehicle.curvature_limit)
         qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
     return _Attempt(bounds, d_ref, bool(road_end), qp)
+
+
+def _sides(boxes: FrenetBoxes, left_of: NDArray[np.bool_], sides: Mapping[str, bool]) -> NDArray[np.bool_]:
+    """``left_of`` with the sides a decision fixed (obstacle id → passed on its left) put in."""
+    if not sides:
+        return left_of
+    fixed = [sides.get(ob_id) for ob_id in boxes.ids]
+    return np.array([side if side is not None else own for side, own in zip(fixed, left_of, strict=True)])
 
 
 @dataclass(frozen=True)
@@ -277,23 +287,38 @@ def lateral_stage(
     config: PlannerConfig = DEFAULT_CONFIG,
     lane: Lane | None = None,
     braking_share: float = 0.5,
+    sides: Mapping[str, bool] | None = None,
 ) -> LateralPlan:
     """The path along the chosen ``candidate`` (its kept ``(s, d)`` [m]) clear of the static obstacles'
     ``boxes``, within ``lane`` (default the problem's: a borrow's corridor, :mod:`planner.decision`), its
-    curvature within :func:`curvature_allowance` for ``braking_share``; the QP gets what ``time_left``
-    [s] (None: no limit) says is left of the budget."""
+    curvature within :func:`curvature_allowance` for ``braking_share``, the obstacles in ``sides`` (id →
+    passed on its left) on the side a decision fixed, the others on the candidate's; the QP gets what
+    ``time_left`` [s] (None: no limit) says is left of the budget."""
     s_c, d_c = candidate
     corridor = problem.lane if lane is None else lane
     at = knots(ref, start, float(s_c[-1]), config.lateral)
     d_ref = np.interp(at, s_c, d_c)
+    fixed = {} if sides is None else sides
     attempt = _attempt(
-        solver, ref, problem, start, at, d_ref, boxes, None, time_left, config, corridor, braking_share
+        solver, ref, problem, start, at, d_ref, boxes, None, time_left, config, corridor, braking_share, fixed
     )
     if problem.options.lateral_margin > 0.0 and not attempt.better_than_unsolved():
         # Where the margin to the lane's edges leaves no room (a tight turn, a narrow passage), it is
         # dropped, as it is knot by knot where the lane is narrow (the margin to obstacles is kept).
         relaxed = _attempt(
-            solver, ref, problem, start, at, d_ref, boxes, 0.0, time_left, config, corridor, braking_share
+            solver,
+            ref,
+            problem,
+            start,
+            at,
+            d_ref,
+            boxes,
+            0.0,
+            time_left,
+            config,
+            corridor,
+            braking_share,
+            fixed,
         )
         if relaxed.rank() > attempt.rank():
             attempt = relaxed

@@ -30,7 +30,7 @@ from planner.result import NOT_RUN, CandidateStats, PlanDiagnostics, PlanResult,
 from planner.selection import choose_candidate
 from planner.speed import Profile, ProfileKind, SpeedPlan, speed_stage
 from planner.st_bounds import static_shapes
-from planner.thread_solvers import thread_solvers
+from planner.thread_solvers import Solvers, thread_solvers
 from planner.timing import StageTimer
 from planner.trajectory import Path, Trajectory, polyline_path
 from planner.validation import Violation, trajectory_violations
@@ -63,63 +63,100 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
     with timer.stage("decision"):
         decision = decide(ref, problem, start, lateral, static, boxes, picked.s_end, config)
     run = replace(run, decision=decision)
-    if decision.corridor is not None and decision.boxes is not None:  # borrow the road
-        with timer.stage("candidates"):
-            borrow = _Picked.of(ref, problem, start, decision.corridor, decision.boxes, config)
-        if reason := timer.overrun("candidates"):
-            return run.fallback(reason, candidate, candidate)
-        with timer.stage("lateral"):
-            through = lateral_stage(
-                solvers.lateral,
-                ref,
-                problem,
-                start,
-                borrow.offsets,
-                decision.boxes,
-                timer.remaining_s,
-                config,
-                lane=decision.corridor,
-                braking_share=config.decision.urgent_braking_share if decision.urgent else 0.5,
-            )
-        if through.path is not None:
-            run = replace(run, cands=borrow.cands, best=borrow.best, stats=borrow.stats)
-            candidate, lateral = borrow.path, through
-        else:  # no path through the road from here: the lane plan stands
-            decision = no_path(decision)
-            run = replace(run, decision=decision)
-    elif decision.wait_at is not None:
-        lateral = lateral.stopping_at(decision.wait_at)
+    if decision.corridor is None or decision.boxes is None:  # keep the lane
+        if decision.wait_at is not None:
+            lateral = lateral.stopping_at(decision.wait_at)
+        return _drive(run, solvers, lateral, candidate).answer(run)
+    with timer.stage("candidates"):
+        borrow = _Picked.of(ref, problem, start, decision.corridor, decision.boxes, config)
+    if reason := timer.overrun("candidates"):
+        return run.fallback(reason, candidate, candidate)
+    with timer.stage("lateral"):
+        through = lateral_stage(
+            solvers.lateral,
+            ref,
+            problem,
+            start,
+            borrow.offsets,
+            decision.boxes,
+            timer.remaining_s,
+            config,
+            lane=decision.corridor,
+            braking_share=config.decision.urgent_braking_share if decision.urgent else 0.5,
+            sides=decision.sides,
+        )
+    borrowing = replace(run, cands=borrow.cands, best=borrow.best, stats=borrow.stats)
+    driven = _drive(borrowing, solvers, through, borrow.path) if through.path is not None else None
+    if driven is not None and (driven.result is not None or driven.overrun):
+        return driven.answer(borrowing)
+    # no path through the road from here, or one that breaks a check: the lane plan stands if it passes
+    in_lane = replace(run, decision=no_path(decision))
+    kept = _drive(in_lane, solvers, lateral, candidate)
+    if kept.result is not None or driven is None:
+        return kept.answer(in_lane)
+    return driven.answer(borrowing)
+
+
+@dataclass(frozen=True)
+class _Driven:
+    """The end of a plan along a lateral plan: its answer (``result``), or why it fails and what its
+    fallback needs (``fallback``, the arguments of :meth:`_Run.fallback` after the reason); ``overrun``
+    when the time budget ended it."""
+
+    result: PlanResult | None
+    reason: str = ""
+    fallback: tuple[Path, Path, SolveInfo, SolveInfo, SpeedResult | None] | None = None
+    overrun: bool = False
+
+    def answer(self, run: _Run) -> PlanResult:
+        """The answer: the plan's, or ``run``'s fallback for it."""
+        if self.result is not None:
+            return self.result
+        if self.fallback is None:
+            raise ValueError("a failed plan without what its fallback needs")  # a bug of _drive
+        path, candidate, lateral, speed, planned = self.fallback
+        return run.fallback(self.reason, path, candidate, lateral, speed, planned)
+
+
+def _drive(run: _Run, solvers: Solvers, lateral: LateralPlan, candidate: Path) -> _Driven:
+    """The speed profile along ``lateral``'s path, the trajectory and its checks (the decision of ``run``:
+    the overtaken vehicles, the road or the lane to keep to): the answer, or why it fails."""
+    timer, decision, start = run.timer, run.decision, run.start
     run = replace(run, knots=lateral.knots)
     if lateral.path is None:
-        return run.fallback(f"lateral QP failed: {lateral.info.status}", candidate, candidate, lateral.info)
+        failed = f"lateral QP failed: {lateral.info.status}"
+        return _Driven(None, failed, (candidate, candidate, lateral.info, NOT_RUN, None))
     path = lateral.path
     if reason := timer.overrun("lateral"):
-        return run.fallback(reason, path, candidate, lateral.info)
+        return _Driven(None, reason, (path, candidate, lateral.info, NOT_RUN, None), overrun=True)
 
     with timer.stage("speed"):
-        speed = speed_stage(solvers.speed, ref, lateral, path, problem, start, config, decision.passing)
+        speed = speed_stage(
+            solvers.speed, run.ref, lateral, path, run.problem, start, run.config, decision.passing
+        )
     sqp = speed.solved
     if not sqp.info.usable:
-        return run.fallback(
-            f"speed profile failed: {sqp.info.status}", path, candidate, lateral.info, sqp.info
-        )
+        failed = f"speed profile failed: {sqp.info.status}"
+        return _Driven(None, failed, (path, candidate, lateral.info, sqp.info, None))
     if reason := timer.overrun("speed"):
-        return run.fallback(reason, path, candidate, lateral.info, sqp.info)
+        return _Driven(None, reason, (path, candidate, lateral.info, sqp.info, None), overrun=True)
 
     with timer.stage("trajectory"):
-        profile, traj, bad, note = _trajectory(ref, problem, path, speed, static, decision.borrows)
+        profile, traj, bad, note = _trajectory(
+            run.ref, run.problem, path, speed, run.static, decision.borrows
+        )
     if reason := timer.overrun("trajectory"):
-        return run.fallback(reason, path, candidate, lateral.info, sqp.info)
+        return _Driven(None, reason, (path, candidate, lateral.info, sqp.info, None), overrun=True)
     if bad:
         # A follower's bound may have given way to a stop or a leader: the fallback then also weighs
         # keeping speed and this profile against braking into the follower.
-        reason = f"the optimised trajectory breaks a check: {bad[0]}"
-        return run.fallback(reason, path, candidate, lateral.info, sqp.info, planned=sqp)
+        failed = f"the optimised trajectory breaks a check: {bad[0]}"
+        return _Driven(None, failed, (path, candidate, lateral.info, sqp.info, sqp))
     status: Status = "stopped" if lateral.stops else "ok"
     message = _message(lateral, start) + note
     if decision.borrows or (lateral.stops and decision.reason.kind is not ReasonKind.NO_ROAD):
         message += f"; {decision.reason.message}"  # why it leaves the lane, or why it stops in it
-    return run.result(status, message, traj, lateral.info, sqp.info, profile.kind)
+    return _Driven(run.result(status, message, traj, lateral.info, sqp.info, profile.kind))
 
 
 @dataclass(frozen=True)

@@ -91,7 +91,7 @@ class ViolationKind(StrEnum):
     SELF_INTERSECTS = "self_intersects"
     #: the footprint leaves the lane (not checked while the plan borrows the road beyond it)
     LANE = "lane"
-    #: the footprint leaves the road (``PlanningProblem.road``, when the request gives one)
+    #: the footprint leaves the road (``PlanningProblem.road``) while the plan borrows it
     ROAD = "road"
     #: the footprint meets a static obstacle
     HITS_OBSTACLE = "hits_obstacle"
@@ -197,11 +197,12 @@ def trajectory_violations(
     (:func:`planner.kinematics.lateral_acceleration`, ``v²·|curvature|`` for the point model) at most
     ``max_lateral_acceleration``; acceleration within the limits; consecutive positions of the planned
     point (the centre, a car's rear axle) consistent with ``v·dt``; ``s`` never decreasing and strictly
-    increasing while moving; no self-intersection; footprint inside the lane unless ``borrowing`` (the
-    lane decision borrows the road beyond it: :mod:`planner.decision`) and inside the road when the
-    problem has one (all four corners by TransF-κ; no further out than the measured start where that
-    is already partly outside) and clear of every static obstacle and of every moving one at its
-    predicted pose at the same time; for a car, its kinematics (:func:`car_violations`).
+    increasing while moving; no self-intersection; footprint inside the lane, or inside the road when
+    ``borrowing`` (the lane decision borrows the road beyond it: :mod:`planner.decision`; the lane lies
+    in the road, so the footprint is in the road always) (all four corners by TransF-κ; no further out
+    than the measured start where that is already partly outside) and clear of every static obstacle and
+    of every moving one at its predicted pose at the same time; for a car, its kinematics
+    (:func:`car_violations`).
     And the numbers agree with each other (:func:`consistency_violations`), the speed keeps ``max_speed``
     (:func:`speed_violations`) and the front stays before the reference line's end.
     """
@@ -248,9 +249,10 @@ def trajectory_violations(
     corners = box_corners(traj.x, traj.y, traj.heading, vehicle.length, vehicle.width).reshape(-1, 2)
     fr = to_frenet(ref, corners)
     near_start = np.hypot(traj.x - traj.x[0], traj.y - traj.y[0]) < vehicle.length
-    surfaces = [] if borrowing else [(kind.LANE, problem.lane)]
-    if problem.road is not None:
-        surfaces.append((kind.ROAD, problem.road))
+    # the lane lies inside the road: while the lane is checked, the road's check would only repeat it
+    surfaces = [(kind.LANE, problem.lane)]
+    if borrowing:
+        surfaces = [] if problem.road is None else [(kind.ROAD, problem.road)]
     for surface_kind, surface in surfaces:
         left, right = surface.widths(ref, fr.s)
         outside = np.maximum(fr.d - left, -right - fr.d).reshape(-1, 4)
