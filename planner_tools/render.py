@@ -213,12 +213,16 @@ def write_gif(
     stride: int = 2,
     dpi: int = 100,
     quiet: bool = True,
+    panel_size: tuple[float, float] = (5.2, 3.4),
 ) -> Path:
-    """An animation of the runs side by side, one frame every ``stride`` cycles, in real time.
+    """An animation of the runs side by side, one frame every ``stride`` cycles, in real time, each panel
+    ``panel_size`` inches (width, height).
 
     Frames are mapped without dithering onto a small fixed palette of the figures' colours and their
     blends with white (flat areas stay flat, so the GIF compresses well)."""
-    fig, axes = plt.subplots(1, len(results), figsize=(5.2 * len(results), 3.4), squeeze=False, dpi=dpi)
+    width, height = panel_size
+    figsize = (width * len(results), height)
+    fig, axes = plt.subplots(1, len(results), figsize=figsize, squeeze=False, dpi=dpi)
     panels = [
         _Panel(ax, r, TITLES.get(r.problem.options.generator, r.problem.options.generator))
         for ax, r in zip(axes[0], results, strict=True)
