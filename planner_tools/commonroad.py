@@ -252,7 +252,7 @@ def surface_widths(
         inside = shapely.contains_xy(surface, xy[..., 0], xy[..., 1])
         gap = np.where(inside.all(axis=1), offsets.shape[0], np.argmin(inside, axis=1))  # first off it
         extra = np.where(gap > 0, offsets[np.maximum(gap - 1, 0)], 0.0)
-        extra = grey_closing(extra, size=ROAD_SLIVER + 2, mode="nearest")
+        extra = grey_closing(np.asarray(extra, dtype=float), size=(ROAD_SLIVER + 2,), mode="nearest")
         out.append(lane + extra)
     return out[0], out[1]
 
