@@ -242,7 +242,11 @@ def decide(
         through = _corridor_blocked(ref, problem, corridor, at, boxes, config)
         if through is None:
             return _keep(ReasonKind.ROAD_BLOCKED, reason)
-        if not _room_to_swing(problem, start, through, span.first, side, config):
+        # (round a bend, the reference's own curvature takes the vehicle outwards)
+        swing = reason.block is BlockKind.BEND or _room_to_swing(
+            problem, start, through, span.first, side, config
+        )
+        if not swing:
             return _keep(ReasonKind.NO_PATH, reason)
         if _ends_beyond(ref, problem, corridor, at, config):
             return _keep(ReasonKind.NO_RETURN, reason)
