@@ -139,7 +139,9 @@ class DecisionReason(ResponseModel):
         "`oncoming_id`, would be in the borrowed road from `t` while the vehicle is: it waits before the "
         "block and goes once it is clear), `road_blocked` (the road leaves no room past the block either), "
         "`no_return` (no way back into the lane within the path: a long block, or a slow vehicle it cannot "
-        "pass within the horizon), `no_road` (the request has no `road`)."
+        "pass within the horizon), `no_path` (no path through the road from where the vehicle is: too "
+        "close to the block to swing out, or the path through it breaks a check), `no_road` (the request "
+        "has no `road`)."
     )
     message: str = Field(description="The reason in words; when the lane is blocked, it names what blocks.")
     block: BlockKind | SkipJsonSchema[None] = Field(
