@@ -89,8 +89,8 @@ class ReasonKind(StrEnum):
     ROAD_BLOCKED = "road_blocked"
     #: keep: the way back into the lane after the block is not within the path
     NO_RETURN = "no_return"
-    #: keep: the lateral stage finds no path through the borrowed road from where the vehicle is (too
-    #: close to the block to swing out)
+    #: keep: no path through the borrowed road from where the vehicle is (too close to the block to swing
+    #: out, or the lateral stage finds none, or the plan through it breaks a check)
     NO_PATH = "no_path"
     #: keep: the lane is blocked and the problem has no road beyond it
     NO_ROAD = "no_road"

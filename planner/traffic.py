@@ -37,7 +37,7 @@ def ego_times(
     ahead = np.maximum(np.asarray(s, dtype=float) - start.s, 0.0)
     fast = max(v0, target)
     reach_fast = max(fast**2 - v0**2, 0.0) / (2.0 * a)  # distance until full speed
-    accelerating = (np.sqrt(v0**2 + 2.0 * a * np.minimum(ahead, reach_fast)) - v0) / a
+    accelerating = np.maximum((np.sqrt(v0**2 + 2.0 * a * np.minimum(ahead, reach_fast)) - v0) / a, 0.0)
     early = accelerating + np.maximum(ahead - reach_fast, 0.0) / max(fast, 1e-9)
     cfg = config.decision
     grid = np.linspace(0.0, float(np.max(ahead, initial=0.0)) + 1e-9, 200)
