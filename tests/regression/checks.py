@@ -9,7 +9,8 @@ What is checked is properties, not numbers:
 * every answer: the JSON shape (keys, types, finite numbers), a status among the expected ones and a
   message; the trajectory starts at the ego at ``t = 0`` and is sampled every ``options.dt`` up to
   ``options.horizon_time``; speed never negative;
-* ``ok`` and ``stopped``: :func:`planner.validation.trajectory_violations` (inside the lane, clear of
+* ``ok`` and ``stopped``: :func:`planner.validation.trajectory_violations` (inside the lane, or the road
+  when ``diagnostics.decision`` borrows it, clear of
   obstacles at every time, ``1 − κ·d > 0``, curvature and lateral-acceleration limits, acceleration
   limits, steps consistent with ``v·dt``, ``s`` increasing while moving, no self-intersection), plus
   circles checked exactly, the speed limit, the heading along the direction of motion, the reported
@@ -161,8 +162,9 @@ def common_problems(request: PlanningRequest, problem: PlanningProblem, traj: Tr
     return out
 
 
-def full_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
-    """Every check of an ``ok`` or ``stopped`` trajectory."""
+def full_problems(problem: PlanningProblem, traj: Trajectory, *, borrowing: bool = False) -> list[str]:
+    """Every check of an ``ok`` or ``stopped`` trajectory (``borrowing``: its lane decision borrows the
+    road, so the footprint is checked in the road rather than the lane)."""
     ref = build_reference(problem.reference_line)
     polygons = [
         (ob.id, shapely.make_valid(shapely.Polygon(np.asarray(ob.polygon, dtype=float))))
@@ -170,7 +172,7 @@ def full_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
         if isinstance(ob, PolygonObstacle)
     ]
     # the planner's own checks (dynamic obstacles at each time), as messages
-    out = [v.message for v in trajectory_violations(ref, problem, traj, polygons)]
+    out = [v.message for v in trajectory_violations(ref, problem, traj, polygons, borrowing=borrowing)]
     veh, ego = problem.vehicle, problem.ego
 
     prints = shapely.polygons(box_corners(traj.x, traj.y, traj.heading, veh.length, veh.width))
@@ -264,7 +266,8 @@ def plan_problems(request_json: dict[str, Any], answer: Any, statuses: Sequence[
     traj = trajectory_of(answer)
     out += common_problems(request, problem, traj)
     if status in ("ok", "stopped"):
-        out += full_problems(problem, traj)
+        borrowing = answer["diagnostics"]["decision"]["lane"] != "keep"
+        out += full_problems(problem, traj, borrowing=borrowing)
     else:
         out += fallback_problems(problem, traj)
     return out
