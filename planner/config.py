@@ -113,8 +113,11 @@ class DecisionConfig:
     #: the ramps into the borrowed road and back are this long at the speed driven there [s] ...
     ramp_time: float = 2.5
     #: ... and at least this many vehicle lengths: also how far before a block a vehicle waiting to
-    #: borrow stops, the room it needs to swing out from a standstill [-]
+    #: borrow stops, the room it needs to swing out from a standstill [-] ...
     min_ramp_lengths: float = 2.5
+    #: ... and as long as it takes to move across the road beyond the lane at this share of the
+    #: lateral-acceleration limit [-]
+    ramp_lateral_share: float = 0.35
     #: the nominal speed profile of the timing estimates accelerates at this share of the limit [-]
     nominal_acceleration_share: float = 0.5
     #: the nominal profile never counts slower than this [m/s]

@@ -237,7 +237,7 @@ def decide(
         return _keep(ReasonKind.ROAD_BLOCKED, reason)
     kind = ReasonKind.RETURNING if first is None else ReasonKind.PASSING
     reason = Reason(kind, reason.block, reason.obstacle_id, reason.s, side=side)
-    corridor = _corridor(problem, road, side, span, ego_s, config)
+    corridor = _corridor(ref, problem, road, side, span, start if out_on else None, config)
     if out_on is None:
         through = _corridor_blocked(ref, problem, corridor, at, boxes, config)
         if through is None:
@@ -258,6 +258,13 @@ def decide(
             # before a block it stops a swing-out's length short; behind a slow vehicle it follows
             wait_at = corridor.start - _min_ramp(problem, config) if stops else -np.inf
             return Decision(LaneChoice.KEEP, wait, wait_at=wait_at if wait_at > start.s else None)
+    elif first is not None:  # outside the lane before a block: pass it only if the road stays clear
+        conflict = oncoming(ref, problem, start, corridor, _needed_out(problem, side), passing, config)
+        if conflict is not None:  # back into the lane where it is, and wait there
+            mover, t = conflict
+            reason = Reason(ReasonKind.ONCOMING, reason.block, reason.obstacle_id, reason.s, t, mover, side)
+            back = _Span(0, 0, start.s, start.s)
+            corridor = _corridor(ref, problem, road, side, back, start, config)
     choice = LaneChoice.BORROW_LEFT if side == "left" else LaneChoice.BORROW_RIGHT
     v0, decel = problem.ego.speed, problem.vehicle.max_deceleration
     urgent = span.s_first - start.s < v0 * (v0 / decel)  # within the stop at half deceleration
@@ -365,12 +372,18 @@ class _Span:
     s_last: float
 
 
-def _ramps(problem: PlanningProblem, config: PlannerConfig) -> tuple[float, float]:
-    """The ramp into the road at the ego's speed and back at the target's [m], each at least the shortest."""
+def _ramps(problem: PlanningProblem, config: PlannerConfig, shift: float = 0.0) -> tuple[float, float]:
+    """The ramp into the road at the ego's speed and back at the target's [m]: ``ramp_time`` of driving,
+    and at least the shortest and the length of a move ``shift`` [m] sideways at ``ramp_lateral_share``
+    of the lateral-acceleration limit (``2·v·√(shift/a)``: accelerating sideways, then braking)."""
+    cfg = config.decision
+    a = cfg.ramp_lateral_share * problem.vehicle.max_lateral_acceleration
+    sideways = 2.0 * np.sqrt(max(shift, 0.0) / a)  # [s]
     shortest = _min_ramp(problem, config)
-    target = target_speed(problem)
-    ramp_time = config.decision.ramp_time
-    return max(shortest, problem.ego.speed * ramp_time), max(shortest, target * ramp_time)
+    ramps = [
+        max(shortest, v * max(cfg.ramp_time, sideways)) for v in (problem.ego.speed, target_speed(problem))
+    ]
+    return ramps[0], ramps[1]
 
 
 def _span(
@@ -396,18 +409,28 @@ def _span(
 
 
 def _corridor(
+    ref: ReferenceLine,
     problem: PlanningProblem,
     road: Road,
     side: Side,
     span: _Span,
-    ego_s: float | None,
+    out: EgoFrenet | None,
     config: PlannerConfig,
 ) -> Corridor:
-    """The lane opened to the road on ``side`` over the span, with its ramps (none behind an ego
-    already outside the lane, at ``ego_s`` [m])."""
-    ramp_in, ramp_out = _ramps(problem, config)
-    lane = problem.lane
-    start = span.s_first - problem.vehicle.length if ego_s is not None else span.s_first
+    """The lane opened to the road on ``side`` over the span, with ramps long enough to move over by
+    a vehicle width and the margins (within the road beyond the lane there) or, for an ego already
+    outside the lane (``out``, its Frenet state), back into it (the corridor then starts a vehicle
+    length behind it)."""
+    lane, vehicle = problem.lane, problem.vehicle
+    s = np.linspace(span.s_first, span.s_last, 16)
+    k = 0 if side == "left" else 1
+    beyond = float(np.max(np.asarray(road.widths(ref, s))[k] - np.asarray(lane.widths(ref, s))[k]))
+    shift = min(beyond, vehicle.width + 2.0 * problem.options.lateral_margin)
+    if out is not None:  # how far its centre is from where it fits in the lane
+        edge = float(lane.widths(ref, out.s)[k]) - 0.5 * vehicle.width
+        shift = max(shift, abs(out.d) - edge)
+    ramp_in, ramp_out = _ramps(problem, config, shift)
+    start = span.s_first - problem.vehicle.length if out is not None else span.s_first
     return Corridor(lane.left_width, lane.right_width, road, side, start, span.s_last, ramp_in, ramp_out)
 
 
@@ -473,6 +496,12 @@ def _needed(
     return float(np.min(bounds.upper[part])) - reach
 
 
+def _needed_out(problem: PlanningProblem, side: Side) -> float:
+    """How far into the road a vehicle already in it needs to stay (an offset, signed): the whole road
+    it may be in (the borrowed space's outer bound left open)."""
+    return np.inf if side == "left" else -np.inf
+
+
 def _ends_beyond(
     ref: ReferenceLine, problem: PlanningProblem, corridor: Corridor, at: FloatArray, config: PlannerConfig
 ) -> bool:
@@ -507,7 +536,7 @@ def _side(
         if not np.any(road_w > lane_w):  # no road beyond the lane on this side there
             continue
         bounds = _corridor_blocked(
-            ref, problem, _corridor(problem, road, side, span, None, config), at, boxes, config
+            ref, problem, _corridor(ref, problem, road, side, span, None, config), at, boxes, config
         )
         if bounds is None:
             continue

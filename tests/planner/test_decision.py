@@ -144,6 +144,21 @@ def test_an_oncoming_car_is_waited_for_and_never_met_in_the_opposite_lane() -> N
     assert np.all(car_front[out] < ego_rear[out])
 
 
+def test_an_ego_already_in_the_opposite_lane_goes_back_and_waits_when_a_car_comes() -> None:
+    car = driving("car", 160.0, 2.0 * HALF_LANE, -10.0)
+    problem = truck(car)
+    problem = replace(problem, ego=replace(problem.ego, y=2.0 * HALF_LANE))  # in the opposite lane
+    result = plan(problem)
+    decision = result.diagnostics.decision
+    assert result.status == "stopped" and decision.lane is LaneChoice.BORROW_LEFT  # still outside
+    assert decision.reason.kind is ReasonKind.ONCOMING and decision.reason.oncoming_id == "car"
+    in_road(problem, result)
+    # back in its lane (the footprint within it), stopped before the truck
+    traj = result.trajectory
+    assert abs(float(traj.d[-1])) + 0.5 * problem.vehicle.width < HALF_LANE
+    assert float(traj.v[-1]) < 0.05 and float(traj.x[-1]) + 2.25 < 54.0
+
+
 def test_a_slow_tractor_is_overtaken_when_the_opposite_lane_is_clear() -> None:
     problem = tractor()
     first = plan(problem)
