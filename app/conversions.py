@@ -17,7 +17,7 @@ import numpy as np
 
 from app.models.candidates import CandidatesDiagnostics
 from app.models.goal import Goal, GoalCircle, GoalDisc, GoalPolygon
-from app.models.plan import STAGES, LateralBackend, RequestTiming, TrajectoryPoint
+from app.models.plan import STAGES, DecisionReason, LateralBackend, RequestTiming, TrajectoryPoint
 from app.models.planning import (
     AnyObstacle,
     Circle,
@@ -35,6 +35,7 @@ from app.models.planning import (
 from planner import goal as pg
 from planner import problem as pp
 from planner.candidates import CandidateSet
+from planner.decision import BlockKind, Decision, LaneChoice, ReasonKind
 from planner.ego import EgoFrenet
 from planner.follower import FollowerReason
 from planner.frenet import FrenetPoints
@@ -249,6 +250,23 @@ _POINT_FIELDS = tuple(name for name in TrajectoryPoint.model_fields if name != "
 _CAR_FIELDS = (*_POINT_FIELDS, "steering_angle")
 
 
+def decision_data(decision: Decision) -> dict[str, Any]:
+    """The lane decision as the JSON data of :class:`~app.models.plan.LaneDecision` (fields that do not
+    apply left out)."""
+    r = decision.reason
+    reason: dict[str, Any] = {"kind": ReasonKind(r.kind).value, "message": r.message}
+    for name in DecisionReason.model_fields:  # in the model's order, as it writes them
+        value = getattr(r, name, None)
+        if name in reason or value is None:
+            continue
+        if name in ("s", "t"):
+            _require_finite(f"the decision's {name}", value)
+            reason[name] = float(value)
+        else:
+            reason[name] = BlockKind(value).value if name == "block" else str(value)
+    return {"lane": LaneChoice(decision.lane).value, "reason": reason}
+
+
 def plan_data(result: PlanResult, request_ms: Mapping[str, float]) -> dict[str, Any]:
     """The answer to :func:`planner.pipeline.plan`'s ``result`` as the JSON data of
     :class:`~app.models.plan.PlanResponse` (plain lists and dicts built from the arrays, ready for
@@ -295,6 +313,7 @@ def plan_data(result: PlanResult, request_ms: Mapping[str, float]) -> dict[str, 
             "solve_time_ms": float(diag.speed.solve_time_ms),
             "profile": ProfileKind(diag.speed_profile).value,
         },
+        "decision": decision_data(diag.decision),
         "timing_ms": dict(zip(STAGES, timing, strict=True)),
         "request": {name: float(request_ms[name]) for name in RequestTiming.model_fields},
     }

@@ -13,6 +13,10 @@ collision checker (rear-end collisions by traffic from behind apart) and its kin
 feasibility check judge it; success = goal ∧ no collision ∧ feasible. See :mod:`planner_tools.evaluate`
 and :mod:`planner_tools.crjudge` for the details, ``planner_tools.evaluate.COLUMNS`` for the columns.
 
+``--road``: the same requests with the whole road beyond the lane (``tests/data/commonroad-road``, from
+the shared scenarios' ``requests-road``), so that plans may borrow it (issue 14); XML conversions carry
+the road of their lanelet network always.
+
 Vehicle (``--vehicle``): ``car`` (default), the scenario's vehicle, CommonRoad's vehicle type 2 (BMW 320i:
 wheelbase, rear axle, steering limits) planned as a car; ``point``, the same footprint as the point model;
 ``request``, the request's own (the point model for the shared requests).
@@ -49,6 +53,8 @@ from planner_tools.sim import SimResult  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 REQUESTS = ROOT / "tests" / "data" / "commonroad"
+#: the same requests with the whole road beyond the lane (``road``); their XML links to REQUESTS' own
+ROAD_REQUESTS = ROOT / "tests" / "data" / "commonroad-road"
 RESULTS = ROOT / "bench" / "results"
 
 
@@ -64,11 +70,13 @@ class Row:
     wall_s: float
 
 
-def scene_paths(xml: Path | None = None, only: list[str] | None = None) -> list[Path]:
-    """The scenes: the request JSONs of ``tests/data/commonroad`` or the XML files of ``xml``, those named
+def scene_paths(xml: Path | None = None, only: list[str] | None = None, road: bool = False) -> list[Path]:
+    """The scenes: the request JSONs of ``tests/data/commonroad`` (with ``road``, those of
+    ``tests/data/commonroad-road``, which carry the whole road) or the XML files of ``xml``, those named
     in ``only`` (file stems) if given."""
     if xml is None:
-        paths = sorted(p for p in REQUESTS.glob("*.json") if p.name != "index.json")
+        folder = ROAD_REQUESTS if road else REQUESTS
+        paths = sorted(p for p in folder.glob("*.json") if p.name != "index.json")
     else:
         paths = [p for p in find_scenes([xml]) if not p.name.endswith(".json")]
     if only:
@@ -99,12 +107,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=None, help="markdown file (default bench/results/…)")
     parser.add_argument("--csv", type=Path, default=None, help="also write the rows as results.csv here")
     parser.add_argument("--vehicle", choices=VEHICLES, default="car", help="see the module docstring")
+    parser.add_argument(
+        "--road", action="store_true", help="the requests with the whole road (tests/data/commonroad-road)"
+    )
     args = parser.parse_args(argv)
 
-    paths = scene_paths(args.xml, args.only)
+    paths = scene_paths(args.xml, args.only, args.road)
     if args.xml is None:
-        source = f"requests in {REQUESTS.relative_to(ROOT)}, judged against the XML beside each"
-        default_out = RESULTS / ("commonroad.md" if args.vehicle == "point" else "commonroad_car.md")
+        folder = ROAD_REQUESTS if args.road else REQUESTS
+        source = f"requests in {folder.relative_to(ROOT)}, judged against the XML beside each"
+        name = "commonroad" if args.vehicle == "point" else "commonroad_car"
+        default_out = RESULTS / f"{name}{'_road' if args.road else ''}.md"
     else:
         source = f"CommonRoad XML in {args.xml}, converted by planner_tools.commonroad"
         default_out = RESULTS / "commonroad_xml.md"

@@ -1,7 +1,8 @@
 """Record the `/v1/plan` answers of a fixed set of requests, or compare them with a recording.
 
 For refactorings that must not change behaviour: record before, compare after. The requests are every
-golden regression request, every CommonRoad request under ``tests/data/commonroad/`` and the demo
+golden regression request, every CommonRoad request under ``tests/data/commonroad/`` and, with the whole
+road (``road``), under ``tests/data/commonroad-road/``, and the demo
 (``GET /v1/demo``); they are posted to the app in-process, so the HTTP layer is part of what is compared.
 
     python bench/compare_answers.py record /tmp/before.json
@@ -12,7 +13,8 @@ changes no answer).
 ``compare`` prints, per request, whether status and message are the same and the largest absolute
 difference of any number of the trajectory and candidates, and the largest of all; the exit status is 1
 when a status, a message, a shape or a number differs by more than ``--tolerance`` (default 1e-9).
-Wall times (``timing_ms``, ``solve_time_ms``) are left out: they differ on every run. So are
+Wall times (``timing_ms``, ``solve_time_ms``, the request's ``waited_ms`` and ``ran_ms``) are left out:
+they differ on every run. So are
 ``--ignore`` keys (dotted paths, e.g. ``answer.diagnostics.speed``) whose meaning a change fixed
 on purpose.
 """
@@ -39,9 +41,10 @@ def requests() -> Iterator[tuple[str, Any]]:
     for path in sorted((ROOT / "tests/regression/requests").glob("*.json")):
         if not path.name.endswith(".expect.json"):
             yield f"regression/{path.stem}", json.loads(path.read_text())
-    for path in sorted((ROOT / "tests/data/commonroad").glob("*.json")):
-        if path.name != "index.json":
-            yield f"commonroad/{path.stem}", json.loads(path.read_text())
+    for folder in ("commonroad", "commonroad-road"):
+        for path in sorted((ROOT / "tests/data" / folder).glob("*.json")):
+            if path.name != "index.json":
+                yield f"{folder}/{path.stem}", json.loads(path.read_text())
 
 
 def record() -> dict[str, Any]:
@@ -70,8 +73,9 @@ def _walk(a: Any, b: Any, where: str, ignore: set[str]) -> Iterator[tuple[str, f
     if where.rsplit(".", 1)[-1] in TIMES or where in ignore:
         return
     if isinstance(a, dict) and isinstance(b, dict):
-        if a.keys() != b.keys():
-            yield f"{where} keys {sorted(set(a) ^ set(b))}", None
+        ignored = {key for key in a.keys() | b.keys() if (f"{where}.{key}" if where else key) in ignore}
+        if a.keys() - ignored != b.keys() - ignored:
+            yield f"{where} keys {sorted((set(a) ^ set(b)) - ignored)}", None
         for key in a.keys() & b.keys():
             yield from _walk(a[key], b[key], f"{where}.{key}" if where else key, ignore)
     elif isinstance(a, list) and isinstance(b, list):

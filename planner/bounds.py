@@ -27,7 +27,7 @@ from planner.collision import FrenetBoxes, box_corners, footprint_extent
 from planner.frenet import to_cartesian, to_frenet
 from planner.lane import lane_bounds
 from planner.problem import Lane, Vehicle
-from planner.reference import FloatArray, ReferenceLine, widths_at
+from planner.reference import FloatArray, ReferenceLine
 
 #: how far beyond the lane edge [m] a bound outside the lane is kept (it blocks the knot either way)
 BEYOND_LANE = 1.0
@@ -52,15 +52,21 @@ def pass_left(
     lies; where the path has no point there, the side with more room to the lane bounds
     ``lower, upper`` [m].
     """
-    out = np.zeros(boxes.count, dtype=bool)
+    out = roomier_left(boxes, s, lower, upper)
     for k in range(boxes.count):  # one decision per obstacle, not per point
         near = (s >= boxes.s_min[k]) & (s <= boxes.s_max[k])
         if near.any():
             out[k] = float(np.mean(d[near])) >= 0.5 * (boxes.d_min[k] + boxes.d_max[k])
-        else:
-            at = int(np.clip(np.searchsorted(s, boxes.s_min[k]), 0, s.shape[0] - 1))
-            out[k] = upper[at] - boxes.d_max[k] >= boxes.d_min[k] - lower[at]
     return out
+
+
+def roomier_left(
+    boxes: FrenetBoxes, s: FloatArray, lower: FloatArray, upper: FloatArray
+) -> NDArray[np.bool_]:
+    """Per obstacle, whether the bounds ``lower, upper`` [m] at knots ``s`` [m] leave more room on its left
+    than on its right, at the first knot at or after its start (the last knot when it starts beyond)."""
+    at = np.clip(np.searchsorted(s, boxes.s_min), 0, s.shape[0] - 1)
+    return np.asarray(upper[at] - boxes.d_max >= boxes.d_min - lower[at], dtype=bool)
 
 
 #: the footprint's corners in :func:`planner.collision.box_corners`' order, by side
@@ -186,8 +192,7 @@ def lateral_bounds(
     # (Behind the first knot, where the vehicle comes from, the lane is taken as wide as at that knot:
     # a reference often starts just behind the vehicle, where the lane's edges may close in.)
     corner_s = np.maximum(corners.s, s[0])
-    left_w = widths_at(lane.left_width, ref, corner_s, field_name="lane.left_width")
-    right_w = widths_at(lane.right_width, ref, corner_s, field_name="lane.right_width")
+    left_w, right_w = lane.widths(ref, corner_s)
     for c in RIGHT_CORNERS:
         lo = np.maximum(lo, -right_w[:, c] + edge + ext_right + corners.reach[:, c])
     for c in LEFT_CORNERS:
@@ -218,7 +223,6 @@ def _turning_limits(
     curved = np.abs(kappa) > 1e-9
     radius = 1.0 / np.where(curved, kappa, 1.0)
     limit = np.where(curved, radius - np.sign(kappa) / vehicle.curvature_limit, 0.0)
-    lane_left = widths_at(lane.left_width, ref, s, field_name="lane.left_width")
-    lane_right = widths_at(lane.right_width, ref, s, field_name="lane.right_width")
+    lane_left, lane_right = lane.widths(ref, s)
     limit = np.clip(limit, -lane_right - BEYOND_LANE, lane_left + BEYOND_LANE)
     return np.where(kappa < -1e-9, limit, -np.inf), np.where(kappa > 1e-9, limit, np.inf)

@@ -126,6 +126,47 @@ class GoalConfig:
 
 
 @dataclass(frozen=True)
+class DecisionConfig:
+    """The lane decision (:mod:`planner.decision`): when to leave the lane for the road, and for how long."""
+
+    #: a moving obstacle ahead in the lane slower than this share of the target speed is passed [-] ...
+    slow_share: float = 0.5
+    #: ... when it is also at least this much slower [m/s]
+    slow_margin: float = 2.0
+    #: the ego is outside its lane (and comes back) when a footprint corner is this far beyond its edge,
+    #: where the road reaches beyond it [m]
+    outside_tolerance: float = 0.3
+    #: the ramps into the borrowed road and back are this long at the speed driven there [s] ...
+    ramp_time: float = 2.5
+    #: ... and at least this many vehicle lengths: also how far before a block a vehicle waiting to
+    #: borrow stops, the room it needs to swing out from a standstill [-] ...
+    min_ramp_lengths: float = 2.5
+    #: ... and as long as it takes to move across the road beyond the lane at this share of the
+    #: lateral-acceleration limit [-]
+    ramp_lateral_share: float = 0.35
+    #: the nominal speed profile of the timing estimates accelerates at this share of the limit [-]
+    nominal_acceleration_share: float = 0.5
+    #: the nominal profile never counts slower than this [m/s]
+    nominal_floor_speed: float = 1.0
+    #: the latest the vehicle is in the borrowed space is the nominal time stretched by this [-] ...
+    late_factor: float = 1.5
+    #: ... and the window of the oncoming check is widened by this on either side [s]
+    time_margin: float = 1.0
+    #: step of the oncoming check [s] (at most twice the horizon)
+    check_step: float = 0.2
+    #: step of the slow vehicles' tracks [s]
+    track_step: float = 0.5
+    #: time headway kept to an overtaken vehicle before coming back in front of it [s]
+    pass_headway: float = 1.0
+    #: the borrowed space whose traffic the vehicle waits for reaches this far beyond the half width of
+    #: the farthest offset it needs there [m]
+    band_spare: float = 1.5
+    #: a borrow round a block closer than a stop at half the deceleration may bend the path as sharply
+    #: as braking at this share of the deceleration allows (full braking less its jerk-limited onset) [-]
+    urgent_braking_share: float = 0.75
+
+
+@dataclass(frozen=True)
 class PlannerConfig:
     """Every tunable of :func:`planner.pipeline.plan` (see the module docstring for the clearances)."""
 
@@ -148,6 +189,7 @@ class PlannerConfig:
     lateral: LateralConfig = field(default_factory=LateralConfig)
     speed: SpeedConfig = field(default_factory=SpeedConfig)
     goal: GoalConfig = field(default_factory=GoalConfig)
+    decision: DecisionConfig = field(default_factory=DecisionConfig)
 
 
 DEFAULT_CONFIG = PlannerConfig()

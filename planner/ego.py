@@ -14,7 +14,7 @@ from planner.errors import InvalidInputError
 from planner.frenet import to_frenet
 from planner.kinematics import lateral_curvature, planned_ego
 from planner.problem import Ego, Lane, PlanningProblem
-from planner.reference import ReferenceLine, widths_at
+from planner.reference import ReferenceLine
 
 #: farthest the ego may be outside the lane, or before the reference's start [m]
 MAX_EGO_OFF_ROAD = 10.0
@@ -88,8 +88,8 @@ def ego_frenet(ref: ReferenceLine, ego: Ego, *, max_curvature: float = np.inf) -
 def check_ego_on_road(ref: ReferenceLine, lane: Lane, start: EgoFrenet) -> None:
     """Refuse an ego farther than :data:`MAX_EGO_OFF_ROAD` [m] outside the lane or before the start, then
     one heading more than :data:`MAX_EGO_HEADING_ERROR` [rad] away from the reference's direction."""
-    left = float(widths_at(lane.left_width, ref, start.s, field_name="lane.left_width"))
-    right = float(widths_at(lane.right_width, ref, start.s, field_name="lane.right_width"))
+    left_w, right_w = lane.widths(ref, start.s)
+    left, right = float(left_w), float(right_w)
     outside = max(start.d - left, -right - start.d, 0.0)
     if outside > MAX_EGO_OFF_ROAD:
         raise InvalidInputError(

@@ -95,15 +95,18 @@ def fallback(
     static: list[tuple[str, BaseGeometry]],
     planned: SpeedResult | None = None,
     config: PlannerConfig = DEFAULT_CONFIG,
+    borrowing: bool = False,
 ) -> Fallback:
     """The fallback for ``reason``, along ``path`` (the best path known), the chosen ``candidate`` and
     the ego's offset; ``planned`` is the SQP's profile along ``path``, weighed when braking is hit from
-    behind (if it is a solution). ``static`` are the static obstacles' outlines."""
+    behind (if it is a solution). ``static`` are the static obstacles' outlines; ``borrowing``: the lane
+    decision borrows the road (the checks then keep the footprint in the road, not the lane)."""
     steps, dt = profile_grid(problem.options, config.speed)
 
     def weigh(label: str, profile: Profile, along: Path) -> _Option:
         traj = profile.sample(along, problem.options.dt, ref, problem.vehicle)
-        return _Option(label, profile, traj, trajectory_violations(ref, problem, traj, static))
+        bad = trajectory_violations(ref, problem, traj, static, borrowing=borrowing)
+        return _Option(label, profile, traj, bad)
 
     hold = held_offset(ref, knots(ref, start, float(candidate.s[-1]), config.lateral), start.d)
     tried: list[_Option] = []

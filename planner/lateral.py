@@ -16,11 +16,12 @@ offset and the speed profile stops before the block (:func:`hold_path`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
+from numpy.typing import NDArray
 
 from planner.bounds import LateralBounds, lateral_bounds, pass_left
 from planner.collision import FrenetBoxes, box_hits, footprint_extent
@@ -28,7 +29,7 @@ from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
 from planner.ego import EgoFrenet
 from planner.kinematics import body_centre, lateral_curvature
 from planner.lane import lane_bounds
-from planner.problem import PlanningProblem
+from planner.problem import Lane, PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Path, frenet_path
 from planner.validation import leaves_lane
@@ -66,15 +67,20 @@ def smoothed_slope(d: FloatArray, s: FloatArray, window: float) -> FloatArray:
 
 
 def curvature_allowance(
-    s: FloatArray, start: EgoFrenet, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG
+    s: FloatArray,
+    start: EgoFrenet,
+    problem: PlanningProblem,
+    config: PlannerConfig = DEFAULT_CONFIG,
+    braking_share: float = 0.5,
 ) -> FloatArray:
     """Largest path curvature [1/m] at knots ``s`` [m]: ``curvature_share · κ_max``, and the curvature
     at ``limit_margin · a_lat,max`` (:func:`planner.kinematics.lateral_curvature`: ``a/v²`` for the point
-    model) for the speed ``v`` the vehicle can at best have slowed to there (braking at half its
-    deceleration from ``v₀``), so that the speed profile can keep the lateral-acceleration limit."""
+    model) for the speed ``v`` the vehicle can at best have slowed to there (braking at ``braking_share``
+    of its deceleration from ``v₀``: half, or all of it to swerve round a block too close to stop for
+    comfortably), so that the speed profile can keep the lateral-acceleration limit."""
     v = problem.vehicle
     travelled = np.maximum(s - start.s, 0.0)
-    v_sq = np.maximum(problem.ego.speed**2 - v.max_deceleration * travelled, 1.0)
+    v_sq = np.maximum(problem.ego.speed**2 - 2.0 * braking_share * v.max_deceleration * travelled, 1.0)
     return np.minimum(
         config.lateral.curvature_share * v.curvature_limit,
         lateral_curvature(config.limit_margin * v.max_lateral_acceleration / v_sq, v),
@@ -124,11 +130,13 @@ def lateral_qp(
 @dataclass(frozen=True)
 class _Corridor:
     """One set of bounds for the QP: the bounds (cut before a block), the reference offsets at their
-    knots, and whether a block is the road's end."""
+    knots, whether a block is the road's end, and the surface the footprint keeps to (the lane, or a
+    borrow's corridor)."""
 
     bounds: LateralBounds
     d_ref: FloatArray
     road_end: bool
+    surface: Lane
 
     @property
     def far(self) -> float:
@@ -197,19 +205,22 @@ def _corridor(
     boxes: FrenetBoxes,
     lane_margin: float | None,
     config: PlannerConfig,
+    corridor: Lane,
+    sides: Mapping[str, bool],
 ) -> _Corridor:
-    """Bounds at knots ``at`` (``lane_margin`` [m] to the lane's edges, default the options' margin) for
-    the lateral QP tracking the candidate's offsets ``d_ref`` [m]."""
+    """Bounds at knots ``at`` in ``corridor`` (the lane, or a borrow's corridor; ``lane_margin`` [m] to
+    its edges, default the options' margin) for the lateral QP tracking the candidate's offsets
+    ``d_ref`` [m], the obstacles in ``sides`` passed on the side a decision fixed."""
     vehicle, options = problem.vehicle, problem.options
-    lane = lane_bounds(ref, problem.lane, at, half_width=0.5 * vehicle.width, margin=options.lateral_margin)
+    lane = lane_bounds(ref, corridor, at, half_width=0.5 * vehicle.width, margin=options.lateral_margin)
     bounds = lateral_bounds(
         ref,
-        problem.lane,
+        corridor,
         at,
         vehicle,
         margin=options.lateral_margin,
         boxes=boxes,
-        left_of=pass_left(boxes, at, d_ref, lane.lower, lane.upper),
+        left_of=_sides(boxes, pass_left(boxes, at, d_ref, lane.lower, lane.upper), sides),
         heading_error=smoothed_slope(d_ref, at, config.lateral.heading_window),
         lane_margin=lane_margin,
     )
@@ -219,7 +230,7 @@ def _corridor(
     # a lane that runs out (narrower than the vehicle) at the reference's end is its end, not a block
     road_end = bounds.blocked is not None and at[bounds.blocked] >= reach
     bounds, d_ref = _qp_bounds(bounds, d_ref, start, reach, vehicle.length)
-    return _Corridor(bounds, d_ref, bool(road_end))
+    return _Corridor(bounds, d_ref, bool(road_end), corridor)
 
 
 def _attempt(
@@ -230,27 +241,29 @@ def _attempt(
     corridor: _Corridor,
     time_left: Callable[[], float | None],
     config: PlannerConfig,
+    braking_share: float,
 ) -> _Attempt:
     """The lateral QP in ``corridor``, again with the vehicle's own curvature limit where the
     speed-dependent one leaves no solution or none that keeps the footprint in the lane; of the answers
     (and OSQP's own iterates beside the second backend's), the first in the lane, then solved."""
     bounds, d_ref = corridor.bounds, corridor.d_ref
-    allowance = curvature_allowance(bounds.s, start, problem, config)
+    allowance = curvature_allowance(bounds.s, start, problem, config, braking_share)
     qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
     if qp.info.converged and qp.first is None:  # OSQP solved it: nothing to choose from
-        return _Attempt(corridor, qp, lambda: _in_lane(ref, problem, bounds.s, qp))
+        return _Attempt(corridor, qp, lambda: _in_lane(ref, problem, bounds.s, qp, corridor.surface))
     # Where the second backend answered, OSQP's own iterate comes along: an exact path may press a bound
     # linearised at the candidate's heading, and a relaxed one break the lane; the first that keeps the
     # footprint in the lane is taken.
     options = [r for r in (qp, qp.first) if r is not None and r.info.usable]
-    inside = [_in_lane(ref, problem, bounds.s, r) for r in options]
+    inside = [_in_lane(ref, problem, bounds.s, r, corridor.surface) for r in options]
     if not qp.info.converged and not any(inside):
         # too fast for the road, or no path in the lane: try the vehicle's own curvature limit
         limit = config.lateral.retry_curvature_share * problem.vehicle.curvature_limit
         allowance = np.full(bounds.s.shape, limit)
         retry = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
         more = [r for r in (retry, retry.first) if r is not None and r.info.usable]
-        options, inside = options + more, inside + [_in_lane(ref, problem, bounds.s, r) for r in more]
+        inside += [_in_lane(ref, problem, bounds.s, r, corridor.surface) for r in more]
+        options = options + more
         qp = retry if not options or not qp.info.usable else qp
     if options:
         ranked = max(range(len(options)), key=lambda i: (inside[i], options[i].info.converged, -i))
@@ -259,12 +272,23 @@ def _attempt(
     return _Attempt(corridor, qp, lambda: found)
 
 
-def _in_lane(ref: ReferenceLine, problem: PlanningProblem, s: FloatArray, qp: LateralQPResult) -> bool:
-    """Whether the footprint along the QP's path stays in the lane at its knots ``s`` [m] (the bounds
-    are linearised at the candidate's heading; the path's own may differ)."""
+def _in_lane(
+    ref: ReferenceLine, problem: PlanningProblem, s: FloatArray, qp: LateralQPResult, surface: Lane
+) -> bool:
+    """Whether the footprint along the QP's path stays on ``surface`` (the lane, or a borrow's corridor)
+    at its knots ``s`` [m] (the bounds are linearised at the candidate's heading; the path's own may
+    differ)."""
     path = frenet_path(ref, s, qp.d, qp.dd, qp.ddd)
     x, y = body_centre(path.x, path.y, path.heading, problem.vehicle)
-    return not bool(np.any(leaves_lane(ref, problem, x, y, path.heading)))
+    return not bool(np.any(leaves_lane(ref, problem, x, y, path.heading, surface)))
+
+
+def _sides(boxes: FrenetBoxes, left_of: NDArray[np.bool_], sides: Mapping[str, bool]) -> NDArray[np.bool_]:
+    """``left_of`` with the sides a decision fixed (obstacle id → passed on its left) put in."""
+    if not sides:
+        return left_of
+    fixed = [sides.get(ob_id) for ob_id in boxes.ids]
+    return np.array([side if side is not None else own for side, own in zip(fixed, left_of, strict=True)])
 
 
 @dataclass(frozen=True)
@@ -280,6 +304,7 @@ class LateralPlan:
         road_end: whether the block is the lane's end rather than something in the way.
         held: whether ``path`` holds the ego's offset because the QP left no room to steer.
         obstacle_on_hold: whether an obstacle on the held offset is the block.
+        waiting: whether the block is a line to wait at before the lane's own (:meth:`stopping_at`).
     """
 
     path: Path | None
@@ -289,6 +314,7 @@ class LateralPlan:
     road_end: bool
     held: bool = False
     obstacle_on_hold: bool = False
+    waiting: bool = False
 
     @property
     def knots(self) -> int:
@@ -298,12 +324,22 @@ class LateralPlan:
     @property
     def block_at(self) -> float:
         """Where a block stops the path [m] (the bounds end before the bounds' own block)."""
-        return float(self.bounds.s[self.blocked]) if self.obstacle_on_hold else float(self.bounds.s[-1])
+        at_knot = self.obstacle_on_hold or self.waiting
+        return float(self.bounds.s[self.blocked]) if at_knot else float(self.bounds.s[-1])
 
     @property
     def stops(self) -> bool:
         """Whether the plan must stop before a block (one that is not the lane's end)."""
         return self.blocked is not None and not self.road_end
+
+    def stopping_at(self, s: float) -> LateralPlan:
+        """The plan stopping before the first knot at or beyond ``s`` [m] if that comes before its own
+        block (a line to wait at: :attr:`planner.decision.Decision.wait_at`)."""
+        knot = int(np.searchsorted(self.bounds.s, s))
+        own = self.bounds.s.shape[0] if self.blocked is None or self.road_end else self.blocked
+        if knot >= min(own, self.bounds.s.shape[0]):
+            return self
+        return replace(self, blocked=max(knot, 1), road_end=False, waiting=True)
 
 
 def lateral_stage(
@@ -315,21 +351,29 @@ def lateral_stage(
     boxes: FrenetBoxes,
     time_left: Callable[[], float | None],
     config: PlannerConfig = DEFAULT_CONFIG,
+    lane: Lane | None = None,
+    braking_share: float = 0.5,
+    sides: Mapping[str, bool] | None = None,
 ) -> LateralPlan:
     """The path along the chosen ``candidate`` (its kept ``(s, d)`` [m]) clear of the static obstacles'
-    ``boxes``; the QP gets what ``time_left`` [s] (None: no limit) says is left of the budget."""
+    ``boxes``, within ``lane`` (default the problem's: a borrow's corridor, :mod:`planner.decision`), its
+    curvature within :func:`curvature_allowance` for ``braking_share``, the obstacles in ``sides`` (id →
+    passed on its left) on the side a decision fixed, the others on the candidate's; the QP gets what
+    ``time_left`` [s] (None: no limit) says is left of the budget."""
     s_c, d_c = candidate
+    surface = problem.lane if lane is None else lane
     at = knots(ref, start, float(s_c[-1]), config.lateral)
     d_ref = np.interp(at, s_c, d_c)
-    corridor = _corridor(ref, problem, start, at, d_ref, boxes, None, config)
-    attempt = _attempt(solver, ref, problem, start, corridor, time_left, config)
+    fixed = {} if sides is None else sides
+    corridor = _corridor(ref, problem, start, at, d_ref, boxes, None, config, surface, fixed)
+    attempt = _attempt(solver, ref, problem, start, corridor, time_left, config, braking_share)
     if problem.options.lateral_margin > 0.0 and not attempt.better_than_unsolved():
         # Where the margin to the lane's edges leaves no room (a tight turn, a narrow passage), it is
         # dropped, as it is knot by knot where the lane is narrow (the margin to obstacles is kept).
         # Its QP is solved only where it could rank higher: a farther block, or a first QP unsolved.
-        relaxed = _corridor(ref, problem, start, at, d_ref, boxes, 0.0, config)
+        relaxed = _corridor(ref, problem, start, at, d_ref, boxes, 0.0, config, surface, fixed)
         if (relaxed.far, True, True) > attempt.rank():
-            retry = _attempt(solver, ref, problem, start, relaxed, time_left, config)
+            retry = _attempt(solver, ref, problem, start, relaxed, time_left, config, braking_share)
             if retry.rank() > attempt.rank():
                 attempt = retry
     bounds, qp, road_end = attempt.corridor.bounds, attempt.qp, attempt.corridor.road_end

@@ -29,7 +29,7 @@ from planner import checks
 from planner.checks import MAX_SIZE
 from planner.errors import InvalidInputError, InvalidReferenceError
 from planner.goal import Goal
-from planner.reference import FloatArray
+from planner.reference import FloatArray, ReferenceLine, widths_at
 
 Generator = Literal["naive", "transf_kappa"]
 
@@ -90,6 +90,14 @@ class Lane:
             width = checks.width(value, f"{self.KEY}.{name}")
             if width is not value:
                 object.__setattr__(self, name, width)
+
+    def widths(self, ref: ReferenceLine, s: Any) -> tuple[FloatArray, FloatArray]:
+        """The left and right widths [m] at arc lengths ``s`` [m] of ``ref``
+        (:func:`planner.reference.widths_at`), each of the shape of ``s``."""
+        return (
+            widths_at(self.left_width, ref, s, field_name=f"{self.KEY}.left_width"),
+            widths_at(self.right_width, ref, s, field_name=f"{self.KEY}.right_width"),
+        )
 
 
 @dataclass(frozen=True)

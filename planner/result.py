@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from planner.candidates import CandidateSet
+from planner.decision import KEEP_LANE, Decision
 from planner.follower import UnescapedFollower
 from planner.goal import GoalReport
 from planner.speed import ProfileKind
@@ -47,6 +48,7 @@ class PlanDiagnostics:
         goal: what the trajectory does with the request's goal (None without one).
         follower: the vehicle from behind that still hits the trajectory as predicted, and why it is
             not escaped (:mod:`planner.follower`); None when none does.
+        decision: the lane decision: keep the lane or borrow the road beyond it, and why.
     """
 
     candidates: CandidateStats
@@ -59,6 +61,7 @@ class PlanDiagnostics:
     speed_profile: ProfileKind
     goal: GoalReport | None = None
     follower: UnescapedFollower | None = None
+    decision: Decision = KEEP_LANE
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,18 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import fresnel
 
-from planner.problem import CircleObstacle, Ego, Lane, Options, PlanningProblem, Vehicle
+from planner.problem import (
+    CircleObstacle,
+    DynamicObstacle,
+    Ego,
+    Lane,
+    Obstacle,
+    Options,
+    PlanningProblem,
+    PolygonObstacle,
+    Road,
+    Vehicle,
+)
 from planner.reference import FloatArray
 
 
@@ -61,4 +72,77 @@ def demo_problem() -> PlanningProblem:
         obstacles=(CircleObstacle(id="cone", center=np.array([radius + 1.0, radius]), radius=1.0),),
         vehicle=Vehicle(),
         options=Options(horizon_time=8.0, dt=0.1, target_speed=7.0, num_candidates=32),
+    )
+
+
+#: a two-lane road's lane: half of a 3.5 m lane either side of its centre line [m]
+HALF_LANE = 1.75
+
+
+def two_lane_problem(
+    reference: FloatArray,
+    *,
+    speed: float = 10.0,
+    obstacles: tuple[Obstacle, ...] = (),
+    road: bool = True,
+    opposite_left: bool = True,
+    vehicle: Vehicle | None = None,
+) -> PlanningProblem:
+    """A lane of a two-lane road (right-hand traffic: the opposite lane on the left), the ego at the
+    reference's start at ``speed`` [m/s] (also the target), with the whole road (``road``) or without."""
+    heading = float(np.arctan2(*(reference[1] - reference[0])[::-1]))
+    opposite = 3.0 * HALF_LANE if opposite_left else HALF_LANE
+    return PlanningProblem(
+        reference_line=reference,
+        lane=Lane(HALF_LANE, HALF_LANE),
+        ego=Ego(x=float(reference[0, 0]), y=float(reference[0, 1]), heading=heading, speed=speed),
+        obstacles=obstacles,
+        vehicle=Vehicle() if vehicle is None else vehicle,
+        options=Options(target_speed=speed),
+        road=Road(opposite, HALF_LANE) if road else None,
+    )
+
+
+def box(obstacle_id: str, x: float, y: float, length: float, width: float) -> PolygonObstacle:
+    """An axis-aligned ``length × width`` [m] box centred at ``(x, y)`` [m]."""
+    hx, hy = 0.5 * length, 0.5 * width
+    corners = np.array([[x - hx, y - hy], [x + hx, y - hy], [x + hx, y + hy], [x - hx, y + hy]])
+    return PolygonObstacle(obstacle_id, corners)
+
+
+def driving(
+    obstacle_id: str, x: float, y: float, speed: float, *, length: float = 4.5, width: float = 1.8
+) -> DynamicObstacle:
+    """A vehicle driving along x at ``speed`` [m/s] (negative: towards −x) from ``(x, y)`` [m], predicted
+    over 60 s."""
+    t = np.linspace(0.0, 60.0, 121)
+    heading = 0.0 if speed >= 0.0 else np.pi
+    states = np.column_stack((t, x + speed * t, np.full_like(t, y), np.full_like(t, heading)))
+    return DynamicObstacle(obstacle_id, length, width, states)
+
+
+def hairpin(radius: float, *, leg: float = 40.0, step: float = 0.5, right: bool = True) -> FloatArray:
+    """A U-turn of ``radius`` [m] between two legs of ``leg`` [m], turning right (or left)."""
+    points = u_turn(radius=radius, leg=leg, step=step)
+    return points * np.array([1.0, -1.0]) if right else points
+
+
+def wide_u_turn_problem() -> PlanningProblem:
+    """A left U-turn of radius 7 m whose lane a parked car blocks at the turn's start, on a road whose
+    inside (the opposite lanes and a shoulder, 8.75 m from the centre line) is wider than the radius,
+    for a vehicle that turns at a radius of 3.3 m (CommonRoad's cars' 0.3 1/m): the corridor a borrow
+    opens there reaches beyond the centre of curvature."""
+    reference = u_turn(radius=7.0, leg=40.0, step=1.0)
+    vehicle = Vehicle(max_curvature=0.3)
+    parked = (box("parked", 3.0, 0.0, 4.5, 2.0),)
+    problem = two_lane_problem(reference, speed=5.0, obstacles=parked, vehicle=vehicle)
+    ego = Ego(x=-25.0, y=0.0, heading=0.0, speed=5.0)
+    return PlanningProblem(
+        problem.reference_line,
+        problem.lane,
+        ego,
+        parked,
+        vehicle,
+        problem.options,
+        road=Road(5.0 * HALF_LANE, HALF_LANE),
     )

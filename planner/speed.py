@@ -31,6 +31,7 @@ bounds of its time window and the top of its speed range over its region. Withou
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -285,16 +286,18 @@ def speed_stage(
     start: EgoFrenet,
     config: PlannerConfig = DEFAULT_CONFIG,
     aim: SpeedAim | None = None,
+    passing: Collection[str] = (),
 ) -> SpeedPlan:
     """The speed profile along the lateral stage's ``path`` (see the module docstring), with a goal's
-    ``aim``."""
+    ``aim``; the moving obstacles ``passing`` overtakes are not followed
+    (:func:`planner.st_bounds.space_time_bounds`)."""
     cfg = config.speed
     steps, dt = profile_grid(problem.options, cfg)
     s_stop = stop_position(ref, path, lateral, config.stop_gap, problem.vehicle.front_extent)
     if aim is not None:
         s_stop = min(s_stop, aim.stop)
     t = np.arange(steps + 1, dtype=np.float64) * dt
-    bounds = space_time_bounds(ref, path, problem, t, start.s, config)
+    bounds = space_time_bounds(ref, path, problem, t, start.s, config, passing)
     jerk = cfg.emergency_jerk if lateral.stops else cfg.jerk
     speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
     if max(speed.speed_violation, speed.position_violation) > cfg.slack and jerk < cfg.emergency_jerk:

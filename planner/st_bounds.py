@@ -18,6 +18,7 @@ dense traffic mapping the others would be most of the stage's cost.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,16 +71,21 @@ def space_time_bounds(
     t: FloatArray,
     start_s: float,
     config: PlannerConfig = DEFAULT_CONFIG,
+    passing: Collection[str] = (),
 ) -> SpaceTimeBounds:
     """Both bounds at the knot times ``t`` [s] (evenly spaced, at least two) for an ego at ``start_s`` [m],
-    with their ``stop_gap``."""
+    with their ``stop_gap``; the obstacles whose ids are in ``passing`` (overtaken by a lane decision that
+    borrows the road, :mod:`planner.decision`) are not followed."""
     movers = moving_obstacles(problem)
     if not movers:
         return SpaceTimeBounds(None, None)
     speed, gap = config.speed, config.stop_gap
     along = Along.of(ref, path, problem, config)
     # where an obstacle was a headway ago, not where it is: a gap that grows with its speed
-    upper = space_time_bound(along, movers, np.maximum(t - speed.headway, 0.0), start_s)
+    leaders = [ob for ob in movers if ob.id not in passing] if passing else movers
+    upper = (
+        space_time_bound(along, leaders, np.maximum(t - speed.headway, 0.0), start_s) if leaders else None
+    )
     lower = follower_bound(along, movers, t, speed.follower_headway, start_s, problem.ego.speed)
     return SpaceTimeBounds(
         upper=None if upper is None else np.maximum(upper - gap, 0.0),

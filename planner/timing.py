@@ -12,10 +12,12 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Final, Literal, get_args
 
-Stage = Literal["reference", "candidates", "lateral", "speed", "trajectory", "fallback"]
+Stage = Literal["reference", "candidates", "lateral", "decision", "speed", "trajectory", "fallback"]
 #: every stage of a plan, in the order they run: the reference line and the ego's start on it; the
-#: candidates, their collision check and the choice; the lateral bounds and QP; the speed profile; the
-#: trajectory sampled and checked; the fallback's own work (choosing a braking trajectory)
+#: candidates, their collision check and the choice; the lateral bounds and QP; the lane decision (keep
+#: the lane or borrow the road: a borrow runs the candidates and the lateral stage again, timed as
+#: theirs); the speed profile; the trajectory sampled and checked; the fallback's own work (choosing a
+#: braking trajectory)
 STAGES: Final[tuple[Stage, ...]] = get_args(Stage)
 #: the key of the plan's wall time in ``timing_ms``
 TOTAL: Final = "total"

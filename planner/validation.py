@@ -18,8 +18,8 @@ from shapely.geometry.base import BaseGeometry
 from planner.collision import box_corners
 from planner.frenet import to_cartesian, to_frenet
 from planner.kinematics import lateral_acceleration, planned_point, steering_angle
-from planner.problem import DynamicObstacle, PlanningProblem, Vehicle
-from planner.reference import FloatArray, ReferenceLine, widths_at
+from planner.problem import DynamicObstacle, Lane, PlanningProblem, Vehicle
+from planner.reference import FloatArray, ReferenceLine
 from planner.swept import moving_contacts, static_contacts
 from planner.trajectory import Trajectory
 
@@ -89,8 +89,10 @@ class ViolationKind(StrEnum):
     S_DECREASES = "s_decreases"
     #: the path crosses or overlaps itself
     SELF_INTERSECTS = "self_intersects"
-    #: the footprint leaves the lane
+    #: the footprint leaves the lane (not checked while the plan borrows the road beyond it)
     LANE = "lane"
+    #: the footprint leaves the road (``PlanningProblem.road``) while the plan borrows it
+    ROAD = "road"
     #: the footprint meets a static obstacle
     HITS_OBSTACLE = "hits_obstacle"
     #: the footprint meets a moving obstacle at its predicted pose at the same time
@@ -193,6 +195,7 @@ _MESSAGES = {
     ViolationKind.S_DECREASES: "s does not increase while moving",
     ViolationKind.SELF_INTERSECTS: "self-intersects",
     ViolationKind.LANE: "footprint leaves the lane",
+    ViolationKind.ROAD: "footprint leaves the road",
     ViolationKind.FRENET: "positions inconsistent with the reported (s, d)",
     ViolationKind.HEADING: "heading off the direction of motion",
     ViolationKind.TURN: "curvature inconsistent with the heading's change",
@@ -206,17 +209,21 @@ def _first(t: FloatArray, where: NDArray[np.bool_]) -> float:
 
 
 def leaves_lane(
-    ref: ReferenceLine, problem: PlanningProblem, x: FloatArray, y: FloatArray, heading: FloatArray
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    x: FloatArray,
+    y: FloatArray,
+    heading: FloatArray,
+    surface: Lane | None = None,
 ) -> NDArray[np.bool_]:
     """Per pose (the footprint's centre ``(x, y)`` [m], yaw ``heading`` [rad]), whether a corner of the
-    footprint is outside the lane (by TransF-κ, beyond :data:`_GEOMETRY_TOL`). The first pose is a
-    measurement: a vehicle already partly outside the lane may not get further out until it has moved
-    one length away."""
+    footprint is outside the lane (``surface``, default the problem's lane: the road when it borrows) (by
+    TransF-κ, beyond :data:`_GEOMETRY_TOL`). The first pose is a measurement: a vehicle already partly
+    outside may not get further out until it has moved one length away."""
     vehicle = problem.vehicle
     corners = box_corners(x, y, heading, vehicle.length, vehicle.width).reshape(-1, 2)
     fr = to_frenet(ref, corners)
-    left = widths_at(problem.lane.left_width, ref, fr.s, field_name="lane.left_width")
-    right = widths_at(problem.lane.right_width, ref, fr.s, field_name="lane.right_width")
+    left, right = (problem.lane if surface is None else surface).widths(ref, fr.s)
     outside = np.maximum(fr.d - left, -right - fr.d).reshape(-1, 4)
     near_start = np.hypot(x - x[0], y - y[0]) < vehicle.length
     allowance = np.where(near_start, max(float(outside[0].max()), 0.0), 0.0)[:, None]
@@ -228,6 +235,8 @@ def trajectory_violations(
     problem: PlanningProblem,
     traj: Trajectory,
     static: list[tuple[str, BaseGeometry]],
+    *,
+    borrowing: bool = False,
 ) -> list[Violation]:
     """Every check a returned trajectory must pass, in this order; an empty list when it passes them all.
 
@@ -236,11 +245,13 @@ def trajectory_violations(
     (:func:`planner.kinematics.lateral_acceleration`, ``v²·|curvature|`` for the point model) at most
     ``max_lateral_acceleration``; acceleration within the limits; consecutive positions of the planned
     point (the centre, a car's rear axle) consistent with ``v·dt``; ``s`` never decreasing and strictly
-    increasing while moving; no self-intersection; footprint inside the lane (all four corners by
-    TransF-κ; no further out than the measured start where that is already partly outside) and clear of
-    every static obstacle and of every moving one at its predicted pose at the same time — in continuous
-    time, between the samples too (:mod:`planner.swept`: the pose moves linearly between samples, as the
-    predictions do); for a car, its kinematics (:func:`car_violations`).
+    increasing while moving; no self-intersection; footprint inside the lane, or inside the road when
+    ``borrowing`` (the lane decision borrows the road beyond it: :mod:`planner.decision`; the lane lies
+    in the road, so the footprint is in the road always) (all four corners by TransF-κ; no further out
+    than the measured start where that is already partly outside) and clear of every static obstacle and
+    of every moving one at its predicted pose at the same time — in continuous time, between the samples
+    too (:mod:`planner.swept`: the pose moves linearly between samples, as the predictions do); for a
+    car, its kinematics (:func:`car_violations`).
     And the numbers agree with each other (:func:`consistency_violations`), the speed keeps ``max_speed``
     (:func:`speed_violations`) and the front stays before the reference line's end.
     """
@@ -283,9 +294,14 @@ def trajectory_violations(
     travelled = np.concatenate(([True], step > _STANDSTILL_STEP))
     if self_intersects(np.column_stack((traj.x, traj.y))[travelled]):
         out.append(Violation(kind.SELF_INTERSECTS))
-    off_lane = leaves_lane(ref, problem, traj.x, traj.y, traj.heading)
-    if np.any(off_lane):
-        out.append(Violation(kind.LANE, t=_first(t, off_lane)))
+    # the lane lies inside the road: while the lane is checked, the road's check would only repeat it
+    surfaces: list[tuple[ViolationKind, Lane]] = [(kind.LANE, problem.lane)]
+    if borrowing:
+        surfaces = [] if problem.road is None else [(kind.ROAD, problem.road)]
+    for surface_kind, surface in surfaces:
+        off = leaves_lane(ref, problem, traj.x, traj.y, traj.heading, surface)
+        if np.any(off):
+            out.append(Violation(surface_kind, t=_first(t, off)))
     # past the reference's end the road is not known: the front (by the reported s) no further past it
     # than at the start
     beyond = traj.s + 0.5 * vehicle.length - ref.length

@@ -15,6 +15,11 @@ written in the service's request contract (:class:`app.models.planning.PlanningR
 * **lane widths** — per reference point, the signed distance to the left edge of the leftmost and to
   the right edge of the rightmost same-direction lanelet beside the route's lanelet there
   (:func:`boundary_widths`; the edges are extended as rays, so end points get real widths).
+* **road widths** (``road``) — per reference point, how far the drivable surface reaches on each side
+  along the reference's normal, without a gap, at least the lane and at most :data:`ROAD_BEYOND` beyond
+  it (:func:`surface_widths`): the surface is the union of the lanelets a vehicle may drive on (every type
+  but :data:`NOT_DRIVABLE`), so adjacent lanelets of either direction count, and where lanelets meet
+  without an adjacency (a junction) their areas too.
 * **obstacles** — static ones as polygons (circles as circles); dynamic ones as ``length × width``
   boxes with a ``prediction`` of their recorded states (t relative to the ego's initial time step,
   box centres — CommonRoad states may sit off the centre by ``origin_x_shift``); a set-based
@@ -58,7 +63,7 @@ from typing import Any
 import numpy as np
 import shapely
 from numpy.typing import ArrayLike, NDArray
-from scipy.ndimage import gaussian_filter1d
+from scipy.ndimage import gaussian_filter1d, grey_closing
 
 from planner.problem import CAR_FIELDS
 from planner.reference import FloatArray
@@ -82,6 +87,17 @@ LANE_CHANGE_COST = 50.0
 EDGE_EXTENSION = 5.0
 #: smallest target speed written into a request [m/s]
 MIN_TARGET_SPEED = 5.0
+#: the road reaches at most this far beyond the lane on each side [m] (two lanes)
+ROAD_BEYOND = 7.5
+#: step of the scan along the normal for the road's widths [m]
+ROAD_STEP = 0.1
+#: lanelets closer than twice this are one surface (their shared edges do not meet exactly) [m]
+SURFACE_GAP = 0.25
+#: a road narrower than its neighbours on either side at this many consecutive points or fewer is a
+#: sliver of the map between lanelets, not a narrowing: it takes the narrower neighbour's width
+ROAD_SLIVER = 2
+#: lanelet types a vehicle does not drive on: they are not part of the road
+NOT_DRIVABLE = frozenset({"sidewalk", "crosswalk", "bicycleLane", "border", "restricted", "restricted_area"})
 #: vehicle of the shared requests
 VEHICLE: dict[str, float] = {
     "length": 4.508,
@@ -210,6 +226,51 @@ def boundary_widths(
     out_left = ~inside & (d_left <= d_right)
     out_right = ~inside & ~out_left
     return np.where(out_left, 0.0, d_left), np.where(out_right, 0.0, d_right)
+
+
+def surface_widths(
+    points: ArrayLike,
+    left: ArrayLike,
+    right: ArrayLike,
+    surface: Any,
+    *,
+    beyond: float = ROAD_BEYOND,
+    step: float = ROAD_STEP,
+) -> tuple[FloatArray, FloatArray]:
+    """Road widths [m] left and right of each point (n, 2) of a line in driving order with lane widths
+    ``left``, ``right`` [m]: from the lane's edge outwards along the line's normal, as far as ``surface``
+    (a shapely geometry, the drivable area) goes on without a gap, at most ``beyond`` [m] beyond the
+    lane; never less than the lane. A dip at :data:`ROAD_SLIVER` points or fewer between wider
+    neighbours is filled (a morphological closing along the line)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    tangent = np.gradient(pts, axis=0)
+    tangent /= np.maximum(np.hypot(tangent[:, 0], tangent[:, 1]), 1e-12)[:, None]
+    normal = np.column_stack((-tangent[:, 1], tangent[:, 0]))
+    offsets = np.arange(1, int(np.ceil(beyond / step)) + 1) * step  # beyond the lane's edge
+    shapely.prepare(surface)
+    out = []
+    for sign, lane in ((1.0, np.asarray(left, dtype=float)), (-1.0, np.asarray(right, dtype=float))):
+        reach = lane[:, None] + offsets[None, :]
+        xy = pts[:, None, :] + sign * reach[..., None] * normal[:, None, :]
+        inside = shapely.contains_xy(surface, xy[..., 0], xy[..., 1])
+        gap = np.where(inside.all(axis=1), offsets.shape[0], np.argmin(inside, axis=1))  # first off it
+        extra = np.where(gap > 0, offsets[np.maximum(gap - 1, 0)], 0.0)
+        extra = grey_closing(np.asarray(extra, dtype=float), size=(ROAD_SLIVER + 2,), mode="nearest")
+        out.append(lane + extra)
+    return out[0], out[1]
+
+
+def drivable_surface(network: Any) -> Any:
+    """The union of the lanelets a vehicle may drive on (see :data:`NOT_DRIVABLE`), closed by
+    :data:`SURFACE_GAP` (grown, then shrunk back) so that neighbours touch."""
+    polygons = []
+    for la in network.lanelets:
+        kinds = {getattr(k, "value", str(k)) for k in (la.lanelet_type or set())}
+        if kinds & NOT_DRIVABLE:
+            continue
+        ring = np.vstack((la.left_vertices, la.right_vertices[::-1]))
+        polygons.append(shapely.make_valid(shapely.Polygon(ring)).buffer(SURFACE_GAP))
+    return shapely.unary_union(polygons).buffer(-SURFACE_GAP)
 
 
 def prediction_rows(
@@ -861,6 +922,7 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
     owner = assign_pieces(pts, pieces)
     pts, owner = pts[keep], owner[keep]
     left, right = _widths(network, pts, owner, owners)
+    road_left, road_right = surface_widths(pts, left, right, drivable_surface(network))
 
     ref = build_reference(pts)
     ego_s = float(to_frenet(ref, ego_xy[None, :]).s[0])
@@ -879,6 +941,7 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
     request = {
         "reference_line": _points_json(pts),
         "lane": {"left_width": [_r(w) for w in left], "right_width": [_r(w) for w in right]},
+        "road": {"left_width": [_r(w) for w in road_left], "right_width": [_r(w) for w in road_right]},
         "obstacles": obstacles,
         "ego": {
             "x": _r(ego_xy[0]),
@@ -908,6 +971,8 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
         "dynamic": n_dynamic,
         "width_left_min_max": [_r(left.min(), 2), _r(left.max(), 2)],
         "width_right_min_max": [_r(right.min(), 2), _r(right.max(), 2)],
+        "road_beyond_left_max": _r(float(np.max(road_left - left)), 2),
+        "road_beyond_right_max": _r(float(np.max(road_right - right)), 2),
     }
     goal_out = {
         "s_min": None if s_goal is None else _r(s_goal, 2),

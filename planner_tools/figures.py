@@ -3,8 +3,10 @@
 ``candidates`` draws the candidates of Algorithm 4 (``naive``) and Algorithm 5 (``transf_kappa``)
 side by side on the demo U-turn, whose inner side is wider than its radius: naive candidates that run
 backwards or cross themselves are drawn in red, the rest in blue
-(:func:`planner_tools.render.candidates_figure`). Needs the optional extra ``tools``; without it, says how
-to install it (exit status 2).
+(:func:`planner_tools.render.candidates_figure`). ``road-candidates`` does the same for the corridor the
+lane decision borrows on a U-turn whose lane a parked car blocks and whose road is wider on the inside
+than the radius (:func:`planner_tools.render.road_candidates_figure`). Needs the optional extra
+``tools``; without it, says how to install it (exit status 2).
 """
 
 from __future__ import annotations
@@ -24,6 +26,12 @@ def main(argv: list[str] | None = None) -> int:
     cand.add_argument("--out", type=Path, default=Path("candidates.png"))
     cand.add_argument("--num-candidates", type=int, default=40)
     cand.add_argument("--seed", type=int, default=0)
+    road = sub.add_parser(
+        "road-candidates", help="Algorithm 4 vs 5 candidates of a borrowed road on a tight U-turn"
+    )
+    road.add_argument("--out", type=Path, default=Path("road_candidates.png"))
+    road.add_argument("--num-candidates", type=int, default=40)
+    road.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     try:
         TOOLS.require("drawing")
@@ -34,6 +42,9 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.figure == "candidates":
         path = render.candidates_figure(args.out, num_candidates=args.num_candidates, seed=args.seed)
+        print(f"wrote {path}")
+    elif args.figure == "road-candidates":
+        path = render.road_candidates_figure(args.out, num_candidates=args.num_candidates, seed=args.seed)
         print(f"wrote {path}")
     return 0
 

@@ -8,9 +8,14 @@
   (``transf_kappa``) side by side on the demo U-turn, whose inner side is wider than its radius: naive
   candidates that run backwards or cross themselves in red, the rest in blue.
 
-A panel shows the road (lane edges where ``κ·d < 1``, the reference), static obstacles, and per cycle
-the candidates (orange: those that fold back), the plan, the driven path, the vehicle's footprint and
-the moving obstacles. Needs the optional extra ``tools`` (matplotlib, Pillow, tqdm).
+* :func:`road_candidates_figure` — the same on a U-turn whose road (beyond a lane blocked by a parked
+  car) is wider on the inside than the turn's radius: the candidates of the corridor the lane decision
+  borrows (:mod:`planner.decision`).
+
+A panel shows the road (lane edges, and the road's when the problem has one, where ``κ·d < 1``; the
+reference), static obstacles, and per cycle the candidates (orange: those that fold back), the plan, the
+driven path, the vehicle's footprint and the moving obstacles. Needs the optional extra ``tools``
+(matplotlib, Pillow, tqdm).
 """
 
 from __future__ import annotations
@@ -38,9 +43,17 @@ from planner.candidates import CandidateSet, generate_candidates
 from planner.collision import box_corners
 from planner.frenet import to_cartesian
 from planner.lane import lane_bounds
-from planner.problem import CircleObstacle, DynamicObstacle, Generator, PlanningProblem, PolygonObstacle
+from planner.pipeline import plan
+from planner.problem import (
+    CircleObstacle,
+    DynamicObstacle,
+    Generator,
+    Lane,
+    PlanningProblem,
+    PolygonObstacle,
+)
 from planner.reference import ReferenceLine, build_reference
-from planner.roads import demo_problem
+from planner.roads import demo_problem, wide_u_turn_problem
 from planner.validation import folds_back
 from planner_tools.records import METRIC_ROWS
 from planner_tools.sim import SimResult, obstacle_outlines
@@ -51,6 +64,8 @@ TITLES = {"naive": "Algorithm 4 (naive offsets)", "transf_kappa": "Algorithm 5 (
 C_CAND, C_FOLD, C_PLAN, C_DRIVEN, C_EGO = "tab:blue", "tab:orange", "crimson", "black", "tab:green"
 #: the vehicle's colour once it has collided
 C_HIT = "tab:red"
+#: the road beyond the lane: its surface and its edges
+C_ROAD, C_ROAD_EDGE = "0.85", "tab:brown"
 
 
 # --------------------------------------------------------------------------------------------------
@@ -64,14 +79,7 @@ class _Panel:
     def __init__(self, ax: Axes, result: SimResult, title: str) -> None:
         self.ax, self.result, self.title = ax, result, title
         problem, ref = result.problem, result.reference
-        bounds = lane_bounds(ref, problem.lane, ref.s, half_width=0.0, margin=0.0)
-        # an edge beyond the centre of curvature (κ·d ≥ 1) folds back on itself: left out
-        edges = [
-            np.where((ref.kappa * w < 1.0)[:, None], to_cartesian(ref, ref.s, w), np.nan)
-            for w in (bounds.upper, bounds.lower)
-        ]
-        for edge in edges:
-            ax.plot(edge[:, 0], edge[:, 1], "-", color="0.3", lw=1.1)
+        edges = _draw_edges(ax, ref, problem)
         ax.plot(ref.points[:, 0], ref.points[:, 1], "--", color="0.55", lw=0.9)
         pts = np.vstack([*(e[np.isfinite(e[:, 0])] for e in edges), ref.points])
         outlines = dict(obstacle_outlines(problem, 0.0))
@@ -151,7 +159,34 @@ class _Panel:
         self.label.set_text(f"{head}\n{tail}, {folded_n} folded candidates")
 
 
-def _legend(fig: Figure, *, outside: bool = False) -> None:
+def _edges(ref: ReferenceLine, widths: Lane) -> list[np.ndarray]:
+    """The left and right edges of a lane or road (n, 2) [m], NaN where an edge lies beyond the
+    reference's centre of curvature (κ·d ≥ 1: it would fold back on itself)."""
+    bounds = lane_bounds(ref, widths, ref.s, half_width=0.0, margin=0.0)
+    return [
+        np.where((ref.kappa * w < 1.0)[:, None], to_cartesian(ref, ref.s, w), np.nan)
+        for w in (bounds.upper, bounds.lower)
+    ]
+
+
+def _draw_edges(ax: Axes, ref: ReferenceLine, problem: PlanningProblem) -> list[np.ndarray]:
+    """Draw the lane's edges and, when the problem has a road, the road's (lighter, with the road's
+    surface shaded); returns every edge drawn."""
+    edges = _edges(ref, problem.lane)
+    if problem.road is not None:
+        road = _edges(ref, problem.road)
+        finite = [e[np.isfinite(e[:, 0])] for e in road]
+        if all(f.shape[0] > 1 for f in finite):
+            ax.fill(*np.vstack((finite[0], finite[1][::-1])).T, color=C_ROAD, alpha=0.35, lw=0, zorder=0)
+        for edge in road:
+            ax.plot(edge[:, 0], edge[:, 1], "-", color=C_ROAD_EDGE, lw=1.0)
+        edges += road
+    for edge in edges[:2]:
+        ax.plot(edge[:, 0], edge[:, 1], "-", color="0.3", lw=1.1)
+    return edges
+
+
+def _legend(fig: Figure, *, outside: bool = False, road: bool = False) -> None:
     handles = [
         Line2D([], [], color=C_CAND, lw=1, label="candidates"),
         Line2D([], [], color=C_FOLD, lw=1, label="candidates that fold back"),
@@ -159,10 +194,16 @@ def _legend(fig: Figure, *, outside: bool = False) -> None:
         Line2D([], [], color=C_DRIVEN, lw=1.6, label="driven"),
         Line2D([], [], color="0.55", ls="--", lw=1, label="reference"),
     ]
+    if road:
+        handles += [
+            Line2D([], [], color="0.3", lw=1.1, label="lane edge"),
+            Line2D([], [], color=C_ROAD_EDGE, lw=1.0, label="road edge"),
+        ]
+    ncol = len(handles) if len(handles) <= 5 else (len(handles) + 1) // 2
     if outside:
-        fig.legend(handles=handles, loc="outside lower center", ncol=5, fontsize=8, frameon=False)
+        fig.legend(handles=handles, loc="outside lower center", ncol=ncol, fontsize=8, frameon=False)
     else:
-        fig.legend(handles=handles, loc="lower center", ncol=5, fontsize=8, frameon=False)
+        fig.legend(handles=handles, loc="lower center", ncol=ncol, fontsize=8, frameon=False)
 
 
 def write_gif(
@@ -172,17 +213,21 @@ def write_gif(
     stride: int = 2,
     dpi: int = 100,
     quiet: bool = True,
+    panel_size: tuple[float, float] = (5.2, 3.4),
 ) -> Path:
-    """An animation of the runs side by side, one frame every ``stride`` cycles, in real time.
+    """An animation of the runs side by side, one frame every ``stride`` cycles, in real time, each panel
+    ``panel_size`` inches (width, height).
 
     Frames are mapped without dithering onto a small fixed palette of the figures' colours and their
     blends with white (flat areas stay flat, so the GIF compresses well)."""
-    fig, axes = plt.subplots(1, len(results), figsize=(5.2 * len(results), 3.4), squeeze=False, dpi=dpi)
+    width, height = panel_size
+    figsize = (width * len(results), height)
+    fig, axes = plt.subplots(1, len(results), figsize=figsize, squeeze=False, dpi=dpi)
     panels = [
         _Panel(ax, r, TITLES.get(r.problem.options.generator, r.problem.options.generator))
         for ax, r in zip(axes[0], results, strict=True)
     ]
-    _legend(fig)
+    _legend(fig, road=any(r.problem.road is not None for r in results))
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     last = max(len(r.steps) for r in results)
     palette = _palette()
@@ -202,7 +247,7 @@ def write_gif(
 
 def _palette() -> Image.Image:
     """A palette image: white, greys, and each drawing colour blended with white at 0–75 %."""
-    base = [to_rgb(c) for c in (C_CAND, C_FOLD, C_PLAN, C_EGO, "tab:red", "tab:purple")]
+    base = [to_rgb(c) for c in (C_CAND, C_FOLD, C_PLAN, C_EGO, "tab:red", "tab:purple", C_ROAD_EDGE)]
     greys = [(g, g, g) for g in np.linspace(0.0, 1.0, 12)]
     blends = [tuple(w + (1.0 - w) * np.array(c)) for c in base for w in (0.0, 0.25, 0.5, 0.75)]
     colours = np.round(255 * np.array([*greys, *blends])).astype(np.uint8)
@@ -215,7 +260,7 @@ def write_key_frames(result: SimResult, out_dir: Path, *, every: float = 2.0, dp
     """A PNG of the run every ``every`` seconds and of its final state."""
     fig, ax = plt.subplots(figsize=(8.0, 4.6))
     panel = _Panel(ax, result, TITLES.get(result.problem.options.generator, ""))
-    _legend(fig)
+    _legend(fig, road=result.problem.road is not None)
     fig.tight_layout(rect=(0, 0.05, 1, 1))
     n = len(result.steps)
     per = max(1, round(every / result.replan_period))
@@ -274,7 +319,7 @@ def write_compare(results: Sequence[SimResult], out: Path, *, columns: int = 4, 
     table.auto_set_font_size(False)
     table.set_fontsize(8)
     table.scale(1.0, 1.15)
-    _legend(fig, outside=True)
+    _legend(fig, outside=True, road=any(r.problem.road is not None for r in results))
     fig.suptitle(
         "Closed loop on the same road: candidates and plan at equal progress along the reference", fontsize=11
     )
@@ -290,10 +335,7 @@ def write_compare(results: Sequence[SimResult], out: Path, *, columns: int = 4, 
 
 
 def _draw_road(ax: Axes, ref: ReferenceLine, problem: PlanningProblem) -> None:
-    bounds = lane_bounds(ref, problem.lane, ref.s, half_width=0.0, margin=0.0)
-    for offset, style in ((bounds.upper, "-"), (bounds.lower, "-")):
-        edge = to_cartesian(ref, ref.s, offset)
-        ax.plot(edge[:, 0], edge[:, 1], style, color="0.35", lw=1.2)
+    _draw_edges(ax, ref, problem)
     ax.plot(ref.points[:, 0], ref.points[:, 1], "--", color="0.55", lw=1.0, label="reference")
     for ob in problem.obstacles:
         if isinstance(ob, CircleObstacle):
@@ -333,6 +375,41 @@ def candidates_figure(out: Path, *, num_candidates: int = 40, seed: int = 0) -> 
         ax.set_xlabel("x [m]")
     axes[0].set_ylabel("y [m]")
     axes[0].legend(loc="lower left")
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def road_candidates_figure(out: Path, *, num_candidates: int = 40, seed: int = 0) -> Path:
+    """Draw Algorithm 4 vs Algorithm 5 candidates of the corridor the lane decision borrows on
+    :func:`planner.roads.wide_u_turn_problem` into ``out`` (PNG)."""
+    problem = wide_u_turn_problem()
+    problem = replace(problem, options=replace(problem.options, num_candidates=num_candidates, seed=seed))
+    ref = build_reference(problem.reference_line)
+    decision = plan(problem).diagnostics.decision
+    if decision.corridor is None:
+        raise RuntimeError(f"the scene does not borrow the road: {decision.reason.message}")
+    fig, axes = plt.subplots(1, 2, figsize=(13, 6.5), sharex=True, sharey=True)
+    panels: tuple[tuple[Axes, Generator, str], ...] = (
+        (axes[0], "naive", "Algorithm 4 (naive offsets)"),
+        (axes[1], "transf_kappa", "Algorithm 5 (TransF-κ repair)"),
+    )
+    for ax, generator, title in panels:
+        options = replace(problem.options, generator=generator)
+        cands = generate_candidates(ref, decision.corridor, problem.ego, problem.vehicle, options)
+        _draw_road(ax, ref, problem)
+        broken = _draw_candidates(ax, ref, cands)
+        ax.set_title(f"{title}\n{broken} of {cands.count} run backwards or self-intersect")
+        ax.set_aspect("equal")
+        ax.grid(alpha=0.3)
+        ax.set_xlabel("x [m]")
+        ax.set_xlim(-30.0, 18.0)
+        ax.set_ylim(-6.0, 24.0)
+    axes[0].set_ylabel("y [m]")
+    axes[0].legend(loc="lower left")
+    fig.suptitle(f"{decision.lane}: {decision.reason.message}", fontsize=10)
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)

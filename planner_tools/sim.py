@@ -63,11 +63,12 @@ from shapely.geometry.base import BaseGeometry
 
 from planner.candidates import CandidateSet
 from planner.collision import box_corners, footprints, obstacle_shape, prediction_at
+from planner.decision import Decision
 from planner.errors import InvalidInputError, PlannerError
 from planner.frenet import to_frenet
 from planner.pipeline import plan
 from planner.problem import DynamicObstacle, Ego, Obstacle, PlanningProblem, Vehicle
-from planner.reference import FloatArray, ReferenceLine, build_reference, widths_at
+from planner.reference import FloatArray, ReferenceLine, build_reference
 from planner.result import PlanResult
 from planner.trajectory import Trajectory
 
@@ -538,6 +539,7 @@ class SimStep:
         chosen: index of the candidate the plan was built on.
         obstacles: every obstacle's outline at ``state.t``.
         max_lateral_error: largest tracking error to the plan over the step [m].
+        decision: the plan's lane decision (:mod:`planner.decision`), None when planning raised.
     """
 
     state: VehicleState
@@ -552,6 +554,7 @@ class SimStep:
     chosen: int | None
     obstacles: tuple[tuple[str, FloatArray], ...]
     max_lateral_error: float
+    decision: Decision | None = None
 
 
 @dataclass(frozen=True)
@@ -589,6 +592,8 @@ class SimMetrics:
         backward_steps: cycles whose centre moved and ended with a smaller ``s``.
         fold_steps: cycles with an executed sample where ``κ·d ≥ 1``.
         max_lane_departure: farthest a footprint corner got outside the lane (≤ 0: inside).
+        max_road_departure: farthest a footprint corner got outside the road (≤ 0: inside; the lane's
+            departure when the problem has no road).
         max_lateral_acceleration: the centre's ``max v_c²/R_c`` (``v²|κ|`` at the centre, the yaw rate
             times the centre's speed); ``max_longitudinal_jerk``, ``max_lateral_jerk``: of
             ``a`` and ``v²κ`` by differences between consecutive sub-steps at which the vehicle moves.
@@ -613,6 +618,7 @@ class SimMetrics:
     backward_steps: int
     fold_steps: int
     max_lane_departure: float
+    max_road_departure: float
     max_lateral_acceleration: float
     max_longitudinal_jerk: float
     max_lateral_jerk: float
@@ -832,6 +838,7 @@ def simulate(
                 chosen=None if result is None else result.diagnostics.chosen_candidate,
                 obstacles=obstacle_outlines(problem, samples[-1].t),
                 max_lateral_error=worst,
+                decision=None if result is None else result.diagnostics.decision,
             )
         )
         samples.extend(cycle)
@@ -938,9 +945,12 @@ def _metrics(
 
     corners = box_corners(motion.x, motion.y, motion.yaw, vehicle.length, vehicle.width).reshape(-1, 2)
     cf = to_frenet(ref, corners)
-    left = widths_at(problem.lane.left_width, ref, cf.s, field_name="lane.left_width")
-    right = widths_at(problem.lane.right_width, ref, cf.s, field_name="lane.right_width")
+    left, right = problem.lane.widths(ref, cf.s)
     departure = float(np.max(np.maximum(cf.d - left, -right - cf.d)))
+    road_departure = departure
+    if problem.road is not None:
+        left, right = problem.road.widths(ref, cf.s)
+        road_departure = float(np.max(np.maximum(cf.d - left, -right - cf.d)))
 
     # the centre's: yaw rate v·κ times the centre's speed
     lat = motion.v**2 * motion.curvature * model.centre_speed_ratio(motion.steering)
@@ -973,6 +983,7 @@ def _metrics(
         backward_steps=backward,
         fold_steps=fold_steps,
         max_lane_departure=departure,
+        max_road_departure=road_departure,
         max_lateral_acceleration=float(np.max(np.abs(lat))),
         max_longitudinal_jerk=float(jerk_long.max()) if jerk_long.size else 0.0,
         max_lateral_jerk=float(jerk_lat.max()) if jerk_lat.size else 0.0,

@@ -14,6 +14,7 @@ from pydantic.json_schema import SkipJsonSchema
 
 from app.models.candidates import Candidate
 from app.models.common import ResponseModel
+from planner.decision import BlockKind, LaneChoice, ReasonKind
 from planner.follower import FollowerReason
 from planner.goal import GoalReason, GoalStatus
 from planner.result import Status as PlanStatus
@@ -28,8 +29,11 @@ STAGES = (TOTAL, *PLANNER_STAGES)
 STAGE_DESCRIPTIONS = {
     TOTAL: "Wall time of the whole plan, from its start to its answer (at least the sum of the stages).",
     "reference": "Reference line and the ego's Frenet state.",
-    "candidates": "Candidate paths, their collision check and the choice.",
-    "lateral": "Lateral bounds and the lateral QP.",
+    "candidates": "Candidate paths, their collision check and the choice (both runs when the lane "
+    "decision borrows the road).",
+    "lateral": "Lateral bounds and the lateral QP (both runs when the lane decision borrows the road).",
+    "decision": "The lane decision: keep the lane or borrow the road beyond it (0 when the request has no "
+    "road and nothing blocks the lane).",
     "speed": "Speed profile: space-time bounds, the SQP and any analytic profile replacing it.",
     "trajectory": "Sampling the trajectory at `options.dt` and its checks.",
     "fallback": "The fallback's own work: braking trajectories tried and checked (0 unless `fallback`).",
@@ -178,6 +182,53 @@ class GoalDiagnostics(ResponseModel):
     message: str = Field(description="Why, in words.")
 
 
+class DecisionReason(ResponseModel):
+    """Why the plan keeps its lane or borrows the road: a kind, what blocks the lane (an obstacle or a
+    bend, and where), and for `oncoming` the moving obstacle that would be in the borrowed road; `message`
+    says it in words. A field that does not apply is left out."""
+
+    kind: ReasonKind = Field(
+        description="`lane_free`: nothing blocks the lane (kept). `passing`: the lane is blocked (`block`): "
+        "borrowing the road on `side` to get past. `returning`: the vehicle is outside its lane, in the "
+        "road on `side`, and comes back. Kept although the lane is blocked: `oncoming` (a moving obstacle, "
+        "`oncoming_id`, would be in the borrowed road from `t` while the vehicle is: it waits before the "
+        "block and goes once it is clear), `road_blocked` (the road leaves no room past the block either), "
+        "`no_return` (no way back into the lane within the path: a long block, or a slow vehicle it cannot "
+        "pass within the horizon), `no_path` (no path through the road from where the vehicle is: too "
+        "close to the block to swing out, or the path through it breaks a check), `no_road` (the request "
+        "has no `road`)."
+    )
+    message: str = Field(description="The reason in words; when the lane is blocked, it names what blocks.")
+    block: BlockKind | SkipJsonSchema[None] = Field(
+        None,
+        description="What blocks the lane: `obstacle` (a static one, `obstacle_id`), `slow_vehicle` (a "
+        "moving one ahead, `obstacle_id`, too wide to pass in the lane and much slower than the target "
+        "speed), `bend` (tighter than the vehicle can take in the lane), `narrow` (the lane is narrower "
+        "than the vehicle).",
+    )
+    obstacle_id: str | SkipJsonSchema[None] = Field(None, description="The obstacle that blocks the lane.")
+    s: float | SkipJsonSchema[None] = Field(
+        None, description="Where the lane is blocked: the arc length of the vehicle's planned point [m]."
+    )
+    t: float | SkipJsonSchema[None] = Field(
+        None, description="`oncoming`: the first time the moving obstacle is in the borrowed road [s]."
+    )
+    oncoming_id: str | SkipJsonSchema[None] = Field(
+        None, description="`oncoming`: the moving obstacle in the borrowed road."
+    )
+    side: Literal["left", "right"] | SkipJsonSchema[None] = Field(
+        None, description="The side of the road borrowed (or that would be)."
+    )
+
+
+class LaneDecision(ResponseModel):
+    """The lane decision: keep the lane, or borrow the road beyond it (`road` in the request) on one
+    side. While it borrows, the trajectory's footprint stays in the road, not necessarily in the lane."""
+
+    lane: LaneChoice = Field(description="`keep`, `borrow_left` or `borrow_right`.")
+    reason: DecisionReason
+
+
 class PlanDiagnostics(ResponseModel):
     """What each stage of the planner did, what the trajectory does with the goal, and how long the
     request waited and ran."""
@@ -185,6 +236,7 @@ class PlanDiagnostics(ResponseModel):
     candidates: CandidateCounts
     lateral_qp: LateralSolveInfo
     speed: SpeedSolveInfo
+    decision: LaneDecision
     timing_ms: PlanTiming
     request: RequestTiming
     goal: GoalDiagnostics | SkipJsonSchema[None] = Field(

@@ -5,10 +5,11 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from planner.config import DEFAULT_CONFIG
-from planner.lane import corridor_width, lane_bounds
-from planner.problem import Ego, Lane, PlanningProblem, Vehicle
+from planner.lane import Corridor, corridor_width, lane_bounds
+from planner.problem import Ego, Lane, PlanningProblem, Road, Vehicle
 from planner.reference import build_reference
 from planner.roads import straight
 
@@ -38,3 +39,27 @@ def test_the_corridor_is_the_widest_side_the_vehicle_length_and_a_spare() -> Non
     )
     assert corridor_width(problem) == 5.0 + 4.5 + 1.0
     assert corridor_width(problem, replace(DEFAULT_CONFIG, corridor_spare=0.0)) == 5.0 + 4.5
+
+
+def test_a_corridor_is_the_road_on_its_side_over_its_stretch_the_lane_elsewhere() -> None:
+    road = Road(5.0, 3.0)
+    corridor = Corridor(1.5, 1.5, road, "left", start=40.0, end=50.0, ramp_in=10.0, ramp_out=20.0)
+    s = np.array([0.0, 29.0, 30.0, 35.0, 40.0, 45.0, 50.0, 60.0, 70.0, 71.0, 100.0])
+    left, right = corridor.widths(REF, s)
+    np.testing.assert_allclose(left, [1.5, 1.5, 1.5, 3.25, 5.0, 5.0, 5.0, 3.25, 1.5, 1.5, 1.5])
+    np.testing.assert_allclose(right, 1.5)  # the other side stays the lane's
+    mirrored = replace(corridor, side="right")
+    left, right = mirrored.widths(REF, s)
+    np.testing.assert_allclose(left, 1.5)
+    np.testing.assert_allclose(right[[0, 3, 5, 7, 10]], [1.5, 2.25, 3.0, 2.25, 1.5])
+    # a step where a ramp is 0 (an ego already outside its lane)
+    step = replace(corridor, ramp_in=0.0)
+    np.testing.assert_allclose(step.widths(REF, np.array([39.9, 40.0]))[0], [1.5, 5.0])
+    # lane bounds read the corridor as a lane
+    bounds = lane_bounds(REF, corridor, np.array([0.0, 45.0]), half_width=0.9, margin=0.2)
+    np.testing.assert_allclose(bounds.upper, [0.4, 3.9])
+
+
+def test_the_corridor_width_reaches_the_road_when_asked() -> None:
+    problem = PlanningProblem(ROAD, Lane(1.75, 1.75), Ego(0.0, 0.0, 0.0), road=Road(9.0, 1.75))
+    assert corridor_width(problem, road=True) - corridor_width(problem) == pytest.approx(9.0 - 1.75)

@@ -19,7 +19,7 @@ CALL_OVERHEAD_MS = 5.0
 
 
 def test_the_stages_are_named_once_in_the_order_they_run() -> None:
-    assert STAGES == ("reference", "candidates", "lateral", "speed", "trajectory", "fallback")
+    assert STAGES == ("reference", "candidates", "lateral", "decision", "speed", "trajectory", "fallback")
     assert TOTAL not in STAGES
 
 
@@ -60,7 +60,7 @@ def _timed(problem: PlanningProblem) -> tuple[dict[str, float], float, str]:
 def test_an_ok_plan_times_every_stage_it_ran_and_its_total_is_its_wall_time() -> None:
     timing, wall, status = _timed(demo_problem())
     assert status == "ok"
-    assert list(timing) == ["reference", "candidates", "lateral", "speed", "trajectory", TOTAL]
+    assert list(timing) == ["reference", "candidates", "lateral", "decision", "speed", "trajectory", TOTAL]
     assert timing[TOTAL] >= sum(v for k, v in timing.items() if k != TOTAL)
     assert wall - CALL_OVERHEAD_MS <= timing[TOTAL] <= wall
 

@@ -9,7 +9,16 @@ import numpy as np
 import pytest
 
 from planner.frenet import to_cartesian
-from planner.problem import DynamicObstacle, Ego, Lane, Obstacle, PlanningProblem, PolygonObstacle, Vehicle
+from planner.problem import (
+    DynamicObstacle,
+    Ego,
+    Lane,
+    Obstacle,
+    PlanningProblem,
+    PolygonObstacle,
+    Road,
+    Vehicle,
+)
 from planner.reference import ReferenceLine, build_reference
 from planner.roads import arc, straight
 from planner.st_bounds import static_shapes
@@ -38,8 +47,11 @@ def _problem(ref: ReferenceLine, traj: Trajectory, *obstacles: Obstacle, **vehic
 
 
 def _violations(problem: PlanningProblem, traj: Trajectory) -> list[Violation]:
+    """The violations of ``traj``; with a road, as a plan that borrows it (in the road, not the lane)."""
     ref = build_reference(problem.reference_line)
-    return trajectory_violations(ref, problem, traj, static_shapes(problem))
+    return trajectory_violations(
+        ref, problem, traj, static_shapes(problem), borrowing=problem.road is not None
+    )
 
 
 def _set(values: np.ndarray, i: int, value: float) -> np.ndarray:
@@ -120,6 +132,9 @@ def _case(kind: ViolationKind) -> tuple[PlanningProblem, Trajectory]:
         return _problem(LOOP, around), around
     if kind is ViolationKind.LANE:
         return _problem(STRAIGHT, CLEAN), _drift()
+    if kind is ViolationKind.ROAD:  # borrowing a road 3.5 m to the left: the drift leaves it too
+        narrow = replace(_problem(STRAIGHT, CLEAN), lane=Lane(1.75, 1.75), road=Road(3.5, 1.75))
+        return narrow, _drift()
     if kind is ViolationKind.HITS_OBSTACLE:
         parked = PolygonObstacle("parked", _box(30.0, 34.0, 0.5, 2.0))
         return _problem(STRAIGHT, CLEAN, parked), CLEAN
@@ -207,6 +222,7 @@ MESSAGES = {
     ViolationKind.S_DECREASES: "s does not increase while moving",
     ViolationKind.SELF_INTERSECTS: "self-intersects",
     ViolationKind.LANE: "footprint leaves the lane",
+    ViolationKind.ROAD: "footprint leaves the road",
     ViolationKind.HITS_OBSTACLE: "footprint hits obstacle parked",
     ViolationKind.HITS_MOVING_OBSTACLE: "footprint hits moving obstacle crossing",
     ViolationKind.FRENET: "positions inconsistent with the reported (s, d)",

@@ -3,19 +3,22 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import sys
 import tomllib
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from packaging.requirements import Requirement
 from packaging.utils import canonicalize_name
 from PIL import Image
 
-from planner.roads import straight
-from planner_tools import extras, render  # noqa: F401 (render imports the extra's modules once)
+from planner.reference import build_reference
+from planner.roads import straight, wide_u_turn_problem
+from planner_tools import extras, render
 from planner_tools.cli import main
 from planner_tools.extras import TOOLS
 from planner_tools.figures import main as figures_main
@@ -60,6 +63,33 @@ def test_the_candidates_figure_is_drawn(tmp_path: Path, capsys: pytest.CaptureFi
     with Image.open(out) as png:
         assert png.size == (1430, 715)  # 13 × 6.5 in at 110 dpi
     assert f"wrote {out}" in capsys.readouterr().out
+
+
+def test_the_road_candidates_figure_is_drawn(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "road_candidates.png"
+    assert figures_main(["road-candidates", "--out", str(out), "--num-candidates", "12"]) == 0
+    with Image.open(out) as png:
+        assert png.size == (1430, 715)
+    assert f"wrote {out}" in capsys.readouterr().out
+
+
+def test_panels_draw_the_road_edges_beside_the_lanes() -> None:
+    import matplotlib.pyplot as plt
+
+    problem = wide_u_turn_problem()
+    ref = build_reference(problem.reference_line)
+    fig, ax = plt.subplots()
+    try:
+        assert len(render._draw_edges(ax, ref, dataclasses.replace(problem, road=None))) == 2
+        edges = render._draw_edges(ax, ref, problem)
+        assert len(edges) == 4
+        road_left = edges[2]
+        finite = road_left[np.isfinite(road_left[:, 0])]
+        # the road's left edge 8.75 m from the reference on the straight legs, left out in the turn
+        assert finite.shape[0] < road_left.shape[0]
+        np.testing.assert_allclose(finite[0], [-40.0, 8.75], atol=1e-6)
+    finally:
+        plt.close(fig)
 
 
 @pytest.fixture

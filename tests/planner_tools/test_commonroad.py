@@ -15,6 +15,7 @@ import pytest
 
 from app.models.planning import PlanningRequest
 from planner.pipeline import plan
+from planner.reference import build_reference
 from planner_tools import commonroad as cr
 from planner_tools.cli import main as cli_main
 from planner_tools.io import problem_from_json
@@ -252,6 +253,51 @@ def test_xml_conversion_is_a_valid_request_close_to_the_shared_one(name: str) ->
     assert 5.0 < conv.info["s_ego"] < cr.BEHIND_EGO + 0.5
     result = plan(problem_from_json(conv.request))
     assert result.status in ("ok", "stopped")
+
+
+def test_the_road_reaches_as_far_as_the_surface_goes_without_a_gap() -> None:
+    shapely = pytest.importorskip("shapely")
+    points = np.column_stack((np.linspace(0.0, 50.0, 11), np.zeros(11)))
+    lane = np.full(11, 1.75)
+    # drivable from y = -1.75 to 5.25, a 0.5 m gap (a median), more surface beyond it
+    surface = shapely.union(shapely.box(-5.0, -1.75, 55.0, 5.25), shapely.box(-5.0, 5.75, 55.0, 12.0))
+    left, right = cr.surface_widths(points, lane, lane, surface)
+    np.testing.assert_allclose(left, 5.25, atol=cr.ROAD_STEP + 1e-9)
+    assert np.all(left <= 5.25)
+    np.testing.assert_allclose(right, 1.75)  # no surface beyond the lane on the right
+    wide = shapely.box(-5.0, -30.0, 55.0, 30.0)
+    left, right = cr.surface_widths(points, lane, lane, wide)
+    np.testing.assert_allclose(left, 1.75 + cr.ROAD_BEYOND, atol=1e-9)  # at most ROAD_BEYOND beyond it
+    np.testing.assert_allclose(right, 1.75 + cr.ROAD_BEYOND, atol=1e-9)
+
+
+def test_xml_conversion_emits_the_road_of_the_opposite_lane() -> None:
+    pytest.importorskip("commonroad")
+    conv = cr.load(DATA / "C-DEU_B471-1_3_T-1.xml")
+    req = PlanningRequest.model_validate(conv.request)
+    assert req.road is not None
+    lane_left, road_left = np.array(req.lane.left_width), np.array(req.road.left_width)
+    np.testing.assert_array_equal(req.road.right_width, req.lane.right_width)  # the verge: nothing
+    beyond = road_left - lane_left
+    assert np.all(beyond >= 0.0) and 3.0 < float(np.median(beyond)) < 4.5  # the opposite lane
+    shared = json.loads((DATA.parent / "commonroad-road" / "C-DEU_B471-1_3_T-1.json").read_text())
+    shared_beyond = np.array(shared["road"]["left_width"]) - np.array(shared["lane"]["left_width"])
+    assert float(np.median(beyond)) == pytest.approx(float(np.median(shared_beyond)), abs=0.3)
+
+
+def test_xml_conversion_opens_the_junction_beyond_aarschots_hairpin() -> None:
+    """The U-turn crosses a junction: no lanelet is adjacent to the turning one, but the crossing road's
+    lanelets lie beyond its outside (the right of a left turn)."""
+    pytest.importorskip("commonroad")
+    conv = cr.load(DATA / "BEL_Aarschot-3_1_T-1.xml.gz")
+    problem = problem_from_json(conv.request)
+    assert problem.road is not None
+    ref = build_reference(problem.reference_line)
+    tightest = float(ref.s[np.argmax(ref.kappa)])
+    s = np.linspace(tightest - 3.0, tightest + 3.0, 7)
+    _, lane_right = problem.lane.widths(ref, s)
+    _, road_right = problem.road.widths(ref, s)
+    assert np.all(road_right - lane_right > 1.0)
 
 
 def test_xml_goal_region_becomes_an_arc_length() -> None:

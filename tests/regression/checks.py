@@ -9,7 +9,8 @@ What is checked is properties, not numbers:
 * every answer: the JSON shape (keys, types, finite numbers), a status among the expected ones and a
   message; the trajectory starts at the ego at ``t = 0`` and is sampled every ``options.dt`` up to
   ``options.horizon_time``; speed never negative;
-* ``ok`` and ``stopped``: :func:`planner.validation.trajectory_violations` (inside the lane, clear of
+* ``ok`` and ``stopped``: :func:`planner.validation.trajectory_violations` (inside the lane, or the road
+  when ``diagnostics.decision`` borrows it, clear of
   obstacles at every time, ``1 − κ·d > 0``, curvature and lateral-acceleration limits, acceleration
   limits, steps consistent with ``v·dt``, ``s`` increasing while moving, no self-intersection), plus
   circles checked exactly, the speed limit, the heading along the direction of motion, the reported
@@ -170,9 +171,12 @@ def common_problems(request: PlanningRequest, problem: PlanningProblem, traj: Tr
     return out
 
 
-def full_problems(problem: PlanningProblem, traj: Trajectory, behind_ok: bool = False) -> list[str]:
+def full_problems(
+    problem: PlanningProblem, traj: Trajectory, behind_ok: bool = False, *, borrowing: bool = False
+) -> list[str]:
     """Every check of an ``ok`` or ``stopped`` trajectory; with ``behind_ok``, hits by the moving
-    obstacles behind the ego at the start (:func:`behind_at_start`) left out."""
+    obstacles behind the ego at the start (:func:`behind_at_start`) left out; ``borrowing``: its lane
+    decision borrows the road, so the footprint is checked in the road rather than the lane."""
     ref = build_reference(problem.reference_line)
     polygons = [
         (ob.id, shapely.make_valid(shapely.Polygon(np.asarray(ob.polygon, dtype=float))))
@@ -183,7 +187,7 @@ def full_problems(problem: PlanningProblem, traj: Trajectory, behind_ok: bool = 
     rear = behind_at_start(problem) if behind_ok else set()
     out = [
         v.message
-        for v in trajectory_violations(ref, problem, traj, polygons)
+        for v in trajectory_violations(ref, problem, traj, polygons, borrowing=borrowing)
         if not (v.kind is ViolationKind.HITS_MOVING_OBSTACLE and v.obstacle_id in rear)
     ]
     veh, ego = problem.vehicle, problem.ego
@@ -301,17 +305,24 @@ def limit_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
 
 def brakes_at_once(problem: PlanningProblem, traj: Trajectory) -> bool:
     """Whether ``traj`` brakes as hard as the vehicle can from the start: its acceleration falls strictly
-    from the first point until it reaches ``−max_deceleration`` (a jerk-limited ramp, no pause), stays
-    there, and is only released (monotonically) as the vehicle comes to a stop within the horizon; or
-    it stands throughout."""
+    from the first point (a jerk-limited ramp, no pause) until it reaches ``−max_deceleration`` and stays
+    there, and is only released (monotonically) as the vehicle comes to a stop within the horizon; or,
+    where the vehicle stops before the ramp gets that far, falls strictly and is then released
+    monotonically to a stop (the jerk-limited stop: nothing stops sooner); or it stands throughout."""
     decel, a = problem.vehicle.max_deceleration, traj.a
+    if np.all(traj.v <= MOVING):
+        return True
     full = a <= -decel * (1 - REL_TOL) - 1e-6
-    if not np.any(full):
-        return bool(np.all(traj.v <= MOVING))
-    first = int(np.argmax(full))
+    if np.any(full):
+        first = int(np.argmax(full))
+        eased = np.flatnonzero(~full[first:])
+    else:  # the deepest point of the ramp, where its release begins
+        first = int(np.argmin(a))
+        eased = np.array([0])
+        if first == 0:
+            return False
     if np.any(np.diff(a[: first + 1]) >= 0.0):
         return False
-    eased = np.flatnonzero(~full[first:])
     if eased.size == 0:
         return True
     release = first + int(eased[0])
@@ -350,10 +361,11 @@ def plan_problems(request_json: dict[str, Any], answer: Any, statuses: Sequence[
     problem = to_problem(request)
     traj = trajectory_of(answer)
     out += common_problems(request, problem, traj)
+    borrowing = answer["diagnostics"]["decision"]["lane"] != "keep"
     if status in ("ok", "stopped"):
-        out += full_problems(problem, traj)
+        out += full_problems(problem, traj, borrowing=borrowing)
     elif answer["diagnostics"]["speed"]["profile"] != "braking":  # braking is hit from behind
-        out += full_problems(problem, traj, behind_ok=True)
+        out += full_problems(problem, traj, behind_ok=True, borrowing=borrowing)
     else:
         out += fallback_problems(problem, traj)
     if status != "fallback" or not brakes_at_once(problem, traj):

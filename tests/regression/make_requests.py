@@ -46,7 +46,7 @@ from planner.problem import (  # noqa: E402
     PolygonObstacle,
     Vehicle,
 )
-from planner.roads import u_turn  # noqa: E402
+from planner.roads import box, driving, straight, two_lane_problem, u_turn  # noqa: E402
 from tests.planner.scenario_roads import (  # noqa: E402
     Road,
     arc_piece,
@@ -57,6 +57,7 @@ from tests.planner.scenario_roads import (  # noqa: E402
 
 REQUESTS = Path(__file__).resolve().parent / "requests"
 COMMONROAD = ROOT / "tests" / "data" / "commonroad"
+COMMONROAD_ROAD = ROOT / "tests" / "data" / "commonroad-road"
 
 Json = dict[str, Any]
 OK, STOPPED, FALLBACK = "ok", "stopped", "fallback"
@@ -275,9 +276,22 @@ def highway(s_ego: float) -> Callable[[], Json]:
     return build
 
 
-def commonroad(name: str) -> Callable[[], Json]:
-    """A recorded CommonRoad request as it is in ``tests/data/commonroad/`` (the file is copied as is)."""
-    return _CopiedFile(COMMONROAD / f"{name}.json")
+def commonroad(name: str, *, road: bool = False) -> Callable[[], Json]:
+    """A recorded CommonRoad request as it is in ``tests/data/commonroad/`` (with ``road``:
+    ``tests/data/commonroad-road/``; the file is copied as is)."""
+    return _CopiedFile((COMMONROAD_ROAD if road else COMMONROAD) / f"{name}.json")
+
+
+def parked_truck(*, oncoming: bool = False) -> Callable[[], Json]:
+    """A lane-wide truck parked 44–56 m ahead on a two-lane road whose opposite lane is the road beyond
+    the lane (`road`); with an oncoming car in it."""
+
+    def build() -> Json:
+        extra = (driving("car", 160.0, 3.5, -10.0),) if oncoming else ()
+        truck = box("truck", 60.0, 0.0, 12.0, 3.2)
+        return _request(two_lane_problem(straight(160.0), obstacles=(truck, *extra)))
+
+    return build
 
 
 class _CopiedFile:
@@ -361,6 +375,20 @@ GOLDEN: dict[str, tuple[Callable[[], Json], Json]] = {
     "cr_ZAM_Over-1_1": (
         commonroad("ZAM_Over-1_1"),
         _expect([FALLBACK], "unreachable: 20 m/s with a lane-wide obstacle 20 m ahead"),
+    ),
+    # With the whole road (issue 14): the plan may borrow it; its footprint stays in the road
+    "parked_truck_road": (parked_truck(), _expect([OK], "a lane-wide parked truck, passed through the road")),
+    "parked_truck_oncoming": (
+        parked_truck(oncoming=True),
+        _expect([STOPPED], "a lane-wide parked truck and a car coming in the opposite lane: waits"),
+    ),
+    "cr_road_ZAM_Over-1_1": (
+        commonroad("ZAM_Over-1_1", road=True),
+        _expect([OK], "with the road: swerves round a lane-wide obstacle it cannot stop for from 20 m/s"),
+    ),
+    "cr_road_C-DEU_B471-1_3_T-1": (
+        commonroad("C-DEU_B471-1_3_T-1", road=True),
+        _expect([STOPPED], "with the road: waits for a car overtaking in the opposite lane"),
     ),
 }
 

@@ -147,6 +147,14 @@ function addNote(text) {
   $("summary").appendChild(n);
 }
 
+/** The lane decision in words (diagnostics.decision: keep or borrow the road, and why), if there is one. */
+function laneDecision(diagnostics) {
+  const decision = diagnostics && diagnostics.decision;
+  if (!decision || typeof decision.lane !== "string") return undefined;
+  const why = decision.reason && typeof decision.reason.message === "string" ? decision.reason.message : "";
+  return why ? `${decision.lane}: ${why}` : decision.lane;
+}
+
 function setDiagnostics(value) {
   const box = $("diagnostics-body");
   box.replaceChildren();
@@ -612,6 +620,7 @@ function drawAnswer(request, answer) {
   setBadge(status, status === "ok" || status === "stopped" || status === "fallback" ? status : "error");
   const repaired = cands.filter((c) => c.repaired).length;
   setSummary(`status: ${status}`, answer.message, [
+    ["lane", laneDecision(answer.diagnostics)],
     ["trajectory", `${traj.t.length} points over ${num(traj.t[traj.t.length - 1] ?? 0, 2)} s`],
     ["candidates", `${cands.length} (${repaired} repaired by TransF-κ)`],
     ["obstacles", String(state.obstacleNodes.length)],

@@ -389,3 +389,33 @@ def test_a_car_behind_that_cannot_be_escaped_is_named_in_the_diagnostics(client:
     escaped = _plan(client, _car_behind(20.0))  # a speed limit above: it speeds up ahead of it
     assert escaped["status"] == "ok" and "follower" not in escaped["diagnostics"]
     assert plan_problems(_car_behind(20.0), escaped, ["ok"]) == []
+
+
+def test_the_decision_keeps_the_lane_and_says_why(client: TestClient, demo: dict[str, Any]) -> None:
+    out = _plan(client, demo)
+    assert out["diagnostics"]["decision"] == {
+        "lane": "keep",
+        "reason": {"kind": "lane_free", "message": "the lane is free"},
+    }
+    stopped = _plan(client, BLOCKED)["diagnostics"]["decision"]
+    assert stopped["lane"] == "keep"
+    reason = stopped["reason"]
+    assert (reason["kind"], reason["block"], reason["obstacle_id"]) == ("no_road", "obstacle", "wall")
+    assert reason["s"] > 10.0 and "obstacle wall blocks the lane" in reason["message"]
+
+
+def test_a_wall_across_the_lane_but_not_the_road_is_passed_through_the_road(client: TestClient) -> None:
+    body = {
+        **BLOCKED,
+        "lane": {"left_width": 1.75, "right_width": 1.75},
+        "road": {"left_width": 5.25, "right_width": 1.75},
+        "obstacles": [{"id": "wall", "polygon": [[60.0, -2.0], [62.0, -2.0], [62.0, 2.0], [60.0, 2.0]]}],
+    }
+    out = _plan(client, body)
+    assert out["status"] == "ok", out["message"]
+    decision = out["diagnostics"]["decision"]
+    assert decision["lane"] == "borrow_left"
+    assert decision["reason"]["kind"] == "passing" and decision["reason"]["side"] == "left"
+    assert decision["reason"]["obstacle_id"] == "wall"
+    assert "t" not in decision["reason"] and "oncoming_id" not in decision["reason"]
+    assert max(_column(out, "d")) > 2.0

@@ -1,0 +1,557 @@
+"""The lane decision: keep the lane, or borrow the road beyond it on one side to get past what blocks it.
+
+Apollo's split: this decider turns what the lane plan met into bounds — a :class:`planner.lane.Corridor`
+(the lane widened to the road's edge on one side over an interval of arc length, with ramps in and out),
+the swept boxes of the vehicles it overtakes, a line to wait at — and the optimisers (candidates, lateral
+QP, speed profile) consume them. It runs after the plan in the lane (candidates, choice, lateral stage):
+
+* **keep** the lane unless something blocks it: the lane plan stops before a block
+  (:attr:`planner.lateral.LateralPlan.stops`: a static obstacle, parked vehicles given as predictions
+  included; a bend tighter than the vehicle can take within the lane; a lane narrower than the
+  vehicle), or a moving obstacle ahead, too wide to pass within the lane, drives much slower than the
+  target speed (``slow_share``, ``slow_margin``), or the ego is already outside its lane where the road
+  goes on (it comes back: ``returning``);
+* **borrow** the road on the side that gets past: a bend's outside; beside obstacles, the side whose
+  corridor the vehicle fits through (the nearer to the reference if both). The interval is the lane's
+  blocked knots (its lateral bounds with the obstacles of the whole road, each passed on its roomier side,
+  no margin to the lane's edges) merged with blocks that follow closer than a return; a slow vehicle
+  blocks where it is swept from now until the vehicle, at its earliest, is a ``pass_headway`` ahead of it
+  (:func:`planner.traffic.slow_vehicle`). The ramps are ``ramp_time`` of driving long, at least
+  ``min_ramp_lengths`` vehicle lengths;
+* only if the corridor's lateral bounds are free over the interval and its ramps, an arc can take the
+  planned point out far enough before the block, the way back into the lane is within the path (or past
+  the reference's end) and no moving obstacle other than those overtaken is in the borrowed space — beyond
+  the lane on that side as far as the vehicle needs, over the interval and its ramps — where and while
+  the vehicle may be there (:func:`planner.traffic.oncoming`). Otherwise keep; where a moving obstacle
+  is the reason and the lane is blocked, stop a swing-out's length before the block
+  (:attr:`Decision.wait_at`) to go once it is clear; behind a slow vehicle, follow it.
+
+An ego already outside its lane keeps borrowing until it is back: it never waits in the road. A borrow
+the lateral stage finds no path for is dropped for the lane plan (:func:`no_path`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+import numpy as np
+from numpy.typing import NDArray
+from shapely.geometry.base import BaseGeometry
+
+from planner.bounds import LateralBounds, lateral_bounds, roomier_left
+from planner.collision import FrenetBoxes, box_corners, frenet_boxes
+from planner.config import DEFAULT_CONFIG, PlannerConfig
+from planner.ego import EgoFrenet
+from planner.frenet import to_frenet
+from planner.lane import Corridor, Side, corridor_width, lane_bounds
+from planner.lateral import LateralPlan, knots
+from planner.problem import Lane, PlanningProblem, Road
+from planner.reference import FloatArray, ReferenceLine
+from planner.speed import target_speed
+from planner.traffic import oncoming, slow_vehicle
+
+
+class LaneChoice(StrEnum):
+    """Where the plan drives: its lane, or the road beyond it on one side."""
+
+    KEEP = "keep"
+    BORROW_LEFT = "borrow_left"
+    BORROW_RIGHT = "borrow_right"
+
+
+class BlockKind(StrEnum):
+    """What blocks the lane."""
+
+    #: a static obstacle (a vehicle that stands over the horizon included)
+    OBSTACLE = "obstacle"
+    #: a moving obstacle ahead, too wide to pass in the lane, much slower than the target speed
+    SLOW_VEHICLE = "slow_vehicle"
+    #: a bend tighter than the vehicle can take within the lane
+    BEND = "bend"
+    #: the lane is narrower than the vehicle
+    NARROW = "narrow"
+
+
+class ReasonKind(StrEnum):
+    """Why the decision is what it is."""
+
+    #: keep: nothing blocks the lane
+    LANE_FREE = "lane_free"
+    #: borrow: to get past what blocks the lane
+    PASSING = "passing"
+    #: borrow: the vehicle is outside its lane and comes back
+    RETURNING = "returning"
+    #: keep: a moving obstacle would be in the borrowed space while the vehicle is: wait
+    ONCOMING = "oncoming"
+    #: keep: the road beyond the lane leaves no room past the block either
+    ROAD_BLOCKED = "road_blocked"
+    #: keep: the way back into the lane after the block is not within the path
+    NO_RETURN = "no_return"
+    #: keep: no path through the borrowed road from where the vehicle is (too close to the block to swing
+    #: out, or the lateral stage finds none, or the plan through it breaks a check)
+    NO_PATH = "no_path"
+    #: keep: the lane is blocked and the problem has no road beyond it
+    NO_ROAD = "no_road"
+
+
+@dataclass(frozen=True)
+class Reason:
+    """Why: its ``kind``; what blocks the lane (``block``: an obstacle ``obstacle_id``, a bend, a narrow
+    lane) where (``s`` [m] on the reference); for ``ONCOMING``, the moving obstacle ``oncoming_id`` in the
+    borrowed space and the first time ``t`` [s] it is there; the ``side`` borrowed or wanted."""
+
+    kind: ReasonKind
+    block: BlockKind | None = None
+    obstacle_id: str | None = None
+    s: float | None = None
+    t: float | None = None
+    oncoming_id: str | None = None
+    side: Side | None = None
+
+    @property
+    def blocked(self) -> str:
+        """What blocks the lane, in words (empty when nothing does)."""
+        if self.block is None:
+            return ""
+        at = f"s = {self.s:.1f} m" if self.s is not None else "ahead"
+        if self.block is BlockKind.OBSTACLE:
+            return f"obstacle {self.obstacle_id} blocks the lane at {at}"
+        if self.block is BlockKind.SLOW_VEHICLE:
+            return f"obstacle {self.obstacle_id} ahead at {at} is much slower than the target speed"
+        if self.block is BlockKind.BEND:
+            return f"the bend at {at} is tighter than the vehicle can take in the lane"
+        return f"the lane at {at} is narrower than the vehicle"
+
+    @property
+    def message(self) -> str:
+        """The reason in words, as answers report it."""
+        side = f"the {self.side}" if self.side else "either side"
+        kind = self.kind
+        if kind is ReasonKind.LANE_FREE:
+            return "the lane is free"
+        if kind is ReasonKind.RETURNING:
+            head = f"returning to the lane from the road on {side}"
+            return f"{head}; {self.blocked}" if self.block else head
+        if kind is ReasonKind.PASSING:
+            tail = f"passing through the road on {side}"
+        elif kind is ReasonKind.ONCOMING:
+            when = "" if self.t is None else f" from t = {self.t:.1f} s"
+            tail = f"obstacle {self.oncoming_id} would be in the road beyond the lane on {side}{when}"
+            tail += ": waiting"
+        elif kind is ReasonKind.ROAD_BLOCKED:
+            tail = "the road beyond the lane leaves no room either"
+        elif kind is ReasonKind.NO_RETURN:
+            tail = "no way back into the lane within the path"
+        elif kind is ReasonKind.NO_PATH:
+            tail = "no path through the road beyond the lane from here"
+        else:
+            tail = "no road beyond the lane"
+        return f"{self.blocked}: {tail}" if self.block else tail
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The lane decision and the bounds it hands the optimisers.
+
+    Attributes:
+        lane: keep, or borrow the road on one side.
+        reason: why.
+        corridor: what a borrow drives in (the lane widened to the road), else None.
+        boxes: a borrow's static obstacles over the whole road, with the swept boxes of the vehicles it
+            overtakes, else None (the lane plan's stand).
+        passing: ids of the moving obstacles a borrow overtakes: the speed profile does not follow them.
+        wait_at: where a kept lane stops, before a block [m] (a swing-out's length before it), or None.
+        urgent: whether a borrow's block is closer than the vehicle stops braking at half its
+            deceleration: the path may then bend as sharply as full braking allows.
+        sides: the obstacles a borrow passes on the borrowed side (id → passed on its left): those
+            reaching into the lane along the corridor's open stretch and ramps.
+    """
+
+    lane: LaneChoice
+    reason: Reason
+    corridor: Corridor | None = None
+    boxes: FrenetBoxes | None = None
+    passing: frozenset[str] = field(default_factory=frozenset)
+    wait_at: float | None = None
+    urgent: bool = False
+    sides: Mapping[str, bool] = field(default_factory=dict)
+
+    @property
+    def borrows(self) -> bool:
+        """Whether the plan borrows the road beyond its lane."""
+        return self.lane is not LaneChoice.KEEP
+
+
+#: the decision when nothing blocks the lane
+KEEP_LANE = Decision(LaneChoice.KEEP, Reason(ReasonKind.LANE_FREE))
+
+
+def decide(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    lane_plan: LateralPlan,
+    static: list[tuple[str, BaseGeometry]],
+    lane_boxes: FrenetBoxes,
+    s_end: float,
+    config: PlannerConfig = DEFAULT_CONFIG,
+) -> Decision:
+    """The lane decision (see the module docstring) after the plan in the lane ``lane_plan``, whose
+    candidate ends at ``s_end`` [m]; ``static`` are the static obstacles' outlines and ``lane_boxes``
+    their boxes as the lane plan saw them."""
+    road = problem.road
+    if road is None and not lane_plan.stops:
+        return KEEP_LANE
+    at = knots(ref, start, s_end, config.lateral)
+    if road is None:
+        if lane_plan.blocked is None:
+            return KEEP_LANE
+        return _keep(ReasonKind.NO_ROAD, _what_blocks(ref, problem, at, lane_plan.blocked, lane_boxes))
+    out_on = _outside_lane(ref, problem, road, config)
+    stops = lane_plan.stops and lane_plan.blocked is not None
+    slow = None if stops else slow_vehicle(ref, problem, start, at, config)
+    if not stops and out_on is None and slow is None:
+        return KEEP_LANE
+    boxes = frenet_boxes(ref, static, reach=corridor_width(problem, config, road=True))
+    first: int | None = None
+    reason = Reason(ReasonKind.RETURNING)
+    passing: frozenset[str] = frozenset()
+    if stops and lane_plan.blocked is not None:
+        first = min(lane_plan.blocked, at.shape[0] - 1)
+        reason = _what_blocks(ref, problem, at, first, boxes)
+    elif slow is not None:
+        reason = Reason(ReasonKind.PASSING, BlockKind.SLOW_VEHICLE, slow.obstacle_id, slow.s)
+        if slow.swept is None:
+            return _keep(ReasonKind.NO_RETURN, reason)
+        boxes = _merged(boxes, slow.swept)
+        passing = frozenset(slow.swept.ids)
+    blocked = _blocked(ref, problem, _bounds(ref, problem, problem.lane, at, boxes, config), config)
+    if slow is not None:
+        first = int(np.argmax(blocked))  # the slow vehicle's swept box
+    ego_s = start.s if out_on is not None else None
+    span = _span(at, blocked, first, ego_s, problem, config)
+    side = out_on or _side(ref, problem, road, at, boxes, span, reason, config)
+    if side is None:
+        return _keep(ReasonKind.ROAD_BLOCKED, reason)
+    kind = ReasonKind.RETURNING if first is None else ReasonKind.PASSING
+    reason = Reason(kind, reason.block, reason.obstacle_id, reason.s, side=side)
+    corridor = _corridor(ref, problem, road, side, span, start if out_on else None, config)
+    if out_on is None:
+        through = _corridor_blocked(ref, problem, corridor, at, boxes, config)
+        if through is None:
+            return _keep(ReasonKind.ROAD_BLOCKED, reason)
+        # (round a bend, the reference's own curvature takes the vehicle outwards)
+        swing = reason.block is BlockKind.BEND or _room_to_swing(
+            problem, start, through, span.first, side, config
+        )
+        if not swing:
+            return _keep(ReasonKind.NO_PATH, reason)
+        if _ends_beyond(ref, problem, corridor, at, config):
+            return _keep(ReasonKind.NO_RETURN, reason)
+        band = _needed(problem, through, span, side, config)
+        conflict = oncoming(ref, problem, start, corridor, band, passing, config)
+        if conflict is not None:
+            mover, t = conflict
+            wait = Reason(ReasonKind.ONCOMING, reason.block, reason.obstacle_id, reason.s, t, mover, side)
+            # before a block it stops a swing-out's length short; behind a slow vehicle it follows
+            wait_at = corridor.start - _min_ramp(problem, config) if stops else -np.inf
+            return Decision(LaneChoice.KEEP, wait, wait_at=wait_at if wait_at > start.s else None)
+    elif first is not None:  # outside the lane before a block: pass it only if the road stays clear
+        conflict = oncoming(ref, problem, start, corridor, _needed_out(problem, side), passing, config)
+        if conflict is not None:  # back into the lane where it is, and wait there
+            mover, t = conflict
+            reason = Reason(ReasonKind.ONCOMING, reason.block, reason.obstacle_id, reason.s, t, mover, side)
+            back = _Span(0, 0, start.s, start.s)
+            corridor = _corridor(ref, problem, road, side, back, start, config)
+    choice = LaneChoice.BORROW_LEFT if side == "left" else LaneChoice.BORROW_RIGHT
+    v0, decel = problem.ego.speed, problem.vehicle.max_deceleration
+    urgent = span.s_first - start.s < v0 * (v0 / decel)  # within the stop at half deceleration
+    passed = _passed(ref, problem, corridor, boxes)
+    sides = {ob_id: side == "left" for ob_id, on in zip(boxes.ids, passed, strict=True) if on}
+    return Decision(choice, reason, corridor, boxes, passing, urgent=bool(urgent), sides=sides)
+
+
+def no_path(decision: Decision) -> Decision:
+    """Keep the lane instead of a borrow the lateral stage found no path for (:data:`ReasonKind.NO_PATH`)."""
+    return _keep(ReasonKind.NO_PATH, decision.reason)
+
+
+def _keep(kind: ReasonKind, block: Reason) -> Decision:
+    """Keep the lane for ``kind``, what blocks it taken from ``block``."""
+    reason = Reason(kind, block.block, block.obstacle_id, block.s, side=block.side)
+    return Decision(LaneChoice.KEEP, reason)
+
+
+def _min_ramp(problem: PlanningProblem, config: PlannerConfig) -> float:
+    """The shortest ramp into the road or back [m]: room to swing out from a standstill."""
+    return config.decision.min_ramp_lengths * problem.vehicle.length
+
+
+def _bounds(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    lane: Lane,
+    at: FloatArray,
+    boxes: FrenetBoxes,
+    config: PlannerConfig,
+    left_of: NDArray[np.bool_] | None = None,
+) -> LateralBounds:
+    """The lateral bounds in ``lane`` at knots ``at`` [m] with no margin to its edges, every obstacle passed
+    on its roomier side unless ``left_of`` says."""
+    if left_of is None:
+        left_of = _roomier(ref, problem, lane, at, boxes)
+    margin = problem.options.lateral_margin
+    return lateral_bounds(
+        ref, lane, at, problem.vehicle, margin=margin, boxes=boxes, left_of=left_of, lane_margin=0.0
+    )
+
+
+def _roomier(
+    ref: ReferenceLine, problem: PlanningProblem, lane: Lane, at: FloatArray, boxes: FrenetBoxes
+) -> NDArray[np.bool_]:
+    """Per obstacle, whether ``lane`` leaves more room on its left than on its right (for the footprint's
+    half width) where it starts (:func:`planner.bounds.roomier_left`)."""
+    room = lane_bounds(ref, lane, at, half_width=0.5 * problem.vehicle.width, margin=0.0)
+    return roomier_left(boxes, at, room.lower, room.upper)
+
+
+def _blocked(
+    ref: ReferenceLine, problem: PlanningProblem, bounds: LateralBounds, config: PlannerConfig
+) -> NDArray[np.bool_]:
+    """Blocked knots of ``bounds`` before the reference's end (a lane running out there is its end)."""
+    reach = ref.length - problem.vehicle.front_extent - config.stop_gap
+    return np.asarray((bounds.lower > bounds.upper) & (bounds.s < reach), dtype=bool)
+
+
+def _what_blocks(
+    ref: ReferenceLine, problem: PlanningProblem, at: FloatArray, knot: int, boxes: FrenetBoxes
+) -> Reason:
+    """What blocks the lane at knot ``knot`` of ``at``: the nearest obstacle whose box the footprint
+    overlaps along the reference there and which reaches into the lane; else a lane narrower than the
+    vehicle, or a bend."""
+    v, margin = problem.vehicle, problem.options.lateral_margin
+    s = float(at[knot])
+    left, right = (float(w) for w in problem.lane.widths(ref, s))
+    along = (s + v.front_extent + margin >= boxes.s_min) & (s - v.rear_extent - margin <= boxes.s_max)
+    across = (boxes.d_max >= -right - margin) & (boxes.d_min <= left + margin)
+    hits = np.flatnonzero(along & across)
+    if hits.size:
+        k = int(hits[np.argmin(boxes.s_min[hits])])
+        return Reason(ReasonKind.NO_ROAD, BlockKind.OBSTACLE, boxes.ids[k], s)
+    kind = BlockKind.NARROW if left + right <= v.width else BlockKind.BEND
+    return Reason(ReasonKind.NO_ROAD, kind, None, s)
+
+
+def _outside_lane(
+    ref: ReferenceLine, problem: PlanningProblem, road: Road, config: PlannerConfig
+) -> Side | None:
+    """The side on which the ego's footprint reaches more than ``outside_tolerance`` beyond its lane into
+    a road that goes on beyond it there, or None."""
+    ego, v = problem.ego, problem.vehicle
+    corners = box_corners(np.array(ego.x), np.array(ego.y), np.array(ego.heading), v.length, v.width)
+    fr = to_frenet(ref, corners.reshape(-1, 2))
+    left, right = problem.lane.widths(ref, fr.s)
+    road_left, road_right = road.widths(ref, fr.s)
+    tol = config.decision.outside_tolerance
+    beyond_left = float(np.max(np.where(road_left > left + tol, fr.d - left, 0.0)))
+    beyond_right = float(np.max(np.where(road_right > right + tol, -right - fr.d, 0.0)))
+    if max(beyond_left, beyond_right) <= tol:
+        return None
+    return "left" if beyond_left >= beyond_right else "right"
+
+
+@dataclass(frozen=True)
+class _Span:
+    """The knots ``first..last`` of ``at`` a borrow covers (the blocked run and those merged with it)."""
+
+    first: int
+    last: int
+    s_first: float
+    s_last: float
+
+
+def _ramps(problem: PlanningProblem, config: PlannerConfig, shift: float = 0.0) -> tuple[float, float]:
+    """The ramp into the road at the ego's speed and back at the target's [m]: ``ramp_time`` of driving,
+    and at least the shortest and the length of a move ``shift`` [m] sideways at ``ramp_lateral_share``
+    of the lateral-acceleration limit (``2·v·√(shift/a)``: accelerating sideways, then braking)."""
+    cfg = config.decision
+    a = cfg.ramp_lateral_share * problem.vehicle.max_lateral_acceleration
+    sideways = 2.0 * np.sqrt(max(shift, 0.0) / a)  # [s]
+    shortest = _min_ramp(problem, config)
+    ramps = [
+        max(shortest, v * max(cfg.ramp_time, sideways)) for v in (problem.ego.speed, target_speed(problem))
+    ]
+    return ramps[0], ramps[1]
+
+
+def _span(
+    at: FloatArray,
+    blocked: NDArray[np.bool_],
+    first: int | None,
+    ego_s: float | None,
+    problem: PlanningProblem,
+    config: PlannerConfig,
+) -> _Span:
+    """The blocked run of knots from ``first`` (or the ego's ``ego_s`` [m] when it is outside its lane),
+    merged with the runs that follow closer than both ramps and a vehicle length."""
+    ramp_in, ramp_out = _ramps(problem, config)
+    gap = ramp_in + ramp_out + problem.vehicle.length
+    idx = np.flatnonzero(blocked)
+    i0 = i1 = 0 if first is None else first  # none: outside the lane, from where the ego is
+    for k in idx[idx > i1]:
+        if at[k] - at[i1] > gap:
+            break
+        i1 = int(k)
+    s_first = float(at[i0]) if ego_s is None else min(float(at[i0]), ego_s)
+    return _Span(i0, i1, s_first, float(at[i1]))
+
+
+def _corridor(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    road: Road,
+    side: Side,
+    span: _Span,
+    out: EgoFrenet | None,
+    config: PlannerConfig,
+) -> Corridor:
+    """The lane opened to the road on ``side`` over the span, with ramps long enough to move over by
+    a vehicle width and the margins (within the road beyond the lane there) or, for an ego already
+    outside the lane (``out``, its Frenet state), back into it (the corridor then starts a vehicle
+    length behind it)."""
+    lane, vehicle = problem.lane, problem.vehicle
+    s = np.linspace(span.s_first, span.s_last, 16)
+    k = 0 if side == "left" else 1
+    beyond = float(np.max(np.asarray(road.widths(ref, s))[k] - np.asarray(lane.widths(ref, s))[k]))
+    shift = min(beyond, vehicle.width + 2.0 * problem.options.lateral_margin)
+    if out is not None:  # how far its centre is from where it fits in the lane
+        edge = float(lane.widths(ref, out.s)[k]) - 0.5 * vehicle.width
+        shift = max(shift, abs(out.d) - edge)
+    ramp_in, ramp_out = _ramps(problem, config, shift)
+    start = span.s_first - problem.vehicle.length if out is not None else span.s_first
+    return Corridor(lane.left_width, lane.right_width, road, side, start, span.s_last, ramp_in, ramp_out)
+
+
+def _corridor_blocked(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    corridor: Corridor,
+    at: FloatArray,
+    boxes: FrenetBoxes,
+    config: PlannerConfig,
+) -> LateralBounds | None:
+    """The corridor's lateral bounds at knots ``at`` [m] when they are free from its ramp in to its ramp
+    out, else None: the obstacles reaching into the lane along its open stretch and ramps passed on the
+    borrowed side, the others on their roomier side."""
+    left_of = _roomier(ref, problem, corridor, at, boxes)
+    left_of = np.where(_passed(ref, problem, corridor, boxes), corridor.side == "left", left_of)
+    bounds = _bounds(ref, problem, corridor, at, boxes, config, left_of)
+    within = (at >= corridor.start - corridor.ramp_in) & (at <= corridor.end + corridor.ramp_out)
+    return None if np.any(_blocked(ref, problem, bounds, config) & within) else bounds
+
+
+def _passed(
+    ref: ReferenceLine, problem: PlanningProblem, corridor: Corridor, boxes: FrenetBoxes
+) -> NDArray[np.bool_]:
+    """Which obstacles a borrow passes on its side: those reaching into the lane along the corridor's
+    open stretch and ramps."""
+    lane_left, lane_right = problem.lane.widths(ref, 0.5 * (boxes.s_min + boxes.s_max))
+    in_lane = (boxes.d_min <= lane_left) & (boxes.d_max >= -lane_right)
+    along = (boxes.s_max >= corridor.start - corridor.ramp_in) & (
+        boxes.s_min <= corridor.end + corridor.ramp_out
+    )
+    return np.asarray(along & in_lane, dtype=bool)
+
+
+def _room_to_swing(
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    bounds: LateralBounds,
+    first: int,
+    side: Side,
+    config: PlannerConfig,
+) -> bool:
+    """Whether the planned point can get from its offset into the corridor's ``bounds`` at the first
+    blocked knot ``first`` at all: an arc at ``curvature_share · κ_max`` from the reference's heading
+    moves ``κ·x²/2`` sideways over ``x`` [m] (a cheap bound before the lateral QP tries)."""
+    s = bounds.s[first]
+    need = bounds.lower[first] - start.d if side == "left" else start.d - bounds.upper[first]
+    if need <= 0.0:
+        return True
+    kappa = config.lateral.curvature_share * problem.vehicle.curvature_limit
+    return bool(s - start.s >= np.sqrt(2.0 * need / kappa))
+
+
+def _needed(
+    problem: PlanningProblem, bounds: LateralBounds, span: _Span, side: Side, config: PlannerConfig
+) -> float:
+    """How far into the road the vehicle needs to go [m] (an offset, signed): the farthest the corridor's
+    ``bounds`` push its planned point over the span, its half width and ``band_spare`` beyond."""
+    part = slice(span.first, span.last + 1)
+    reach = 0.5 * problem.vehicle.width + config.decision.band_spare
+    if side == "left":
+        return float(np.max(bounds.lower[part])) + reach
+    return float(np.min(bounds.upper[part])) - reach
+
+
+def _needed_out(problem: PlanningProblem, side: Side) -> float:
+    """How far into the road a vehicle already in it needs to stay (an offset, signed): the whole road
+    it may be in (the borrowed space's outer bound left open)."""
+    return np.inf if side == "left" else -np.inf
+
+
+def _ends_beyond(
+    ref: ReferenceLine, problem: PlanningProblem, corridor: Corridor, at: FloatArray, config: PlannerConfig
+) -> bool:
+    """Whether the way back into the lane ends beyond the path's knots (and before the reference's end,
+    where a return needs no room)."""
+    back_in = corridor.end + corridor.ramp_out
+    reach = ref.length - problem.vehicle.front_extent - config.stop_gap
+    return bool(back_in > float(at[-1]) and float(at[-1]) < reach)
+
+
+def _side(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    road: Road,
+    at: FloatArray,
+    boxes: FrenetBoxes,
+    span: _Span,
+    reason: Reason,
+    config: PlannerConfig,
+) -> Side | None:
+    """The side to borrow: a bend's outside; else the side whose corridor fits with the least offset from
+    the reference over the span (left on a tie); None when neither fits."""
+    if reason.block is BlockKind.BEND:
+        kappa = float(np.mean(ref.kappa_at(at[span.first : span.last + 1])))
+        return "right" if kappa > 0.0 else "left"
+    best: tuple[float, Side] | None = None
+    sides: tuple[Side, Side] = ("left", "right")
+    part = slice(span.first, span.last + 1)
+    lane_widths = problem.lane.widths(ref, at[part])
+    road_widths = road.widths(ref, at[part])
+    for side, lane_w, road_w in zip(sides, lane_widths, road_widths, strict=True):
+        if not np.any(road_w > lane_w):  # no road beyond the lane on this side there
+            continue
+        bounds = _corridor_blocked(
+            ref, problem, _corridor(ref, problem, road, side, span, None, config), at, boxes, config
+        )
+        if bounds is None:
+            continue
+        offset = float(np.mean(np.maximum(np.maximum(bounds.lower[part], -bounds.upper[part]), 0.0)))
+        if best is None or offset < best[0]:
+            best = (offset, side)
+    return None if best is None else best[1]
+
+
+def _merged(a: FrenetBoxes, b: FrenetBoxes) -> FrenetBoxes:
+    """Both sets of boxes."""
+    return FrenetBoxes(
+        a.ids + b.ids,
+        np.concatenate((a.s_min, b.s_min)),
+        np.concatenate((a.s_max, b.s_max)),
+        np.concatenate((a.d_min, b.d_min)),
+        np.concatenate((a.d_max, b.d_max)),
+    )

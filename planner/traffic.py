@@ -1,0 +1,191 @@
+"""The moving obstacles in the lane decision (:mod:`planner.decision`): when the vehicle can be where,
+the slow vehicle ahead it may overtake, and the traffic in the road it would borrow.
+
+Times come from two nominal speed profiles along the reference (:func:`ego_times`): the earliest the
+vehicle can be somewhere and a late estimate; the moving obstacles' Frenet boxes over time from
+:func:`planner.st_bounds.frenet_extents`, only for those that come near the stretch that matters.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.collision import FrenetBoxes, prediction_at
+from planner.config import PlannerConfig
+from planner.ego import EgoFrenet
+from planner.lane import Corridor
+from planner.problem import DynamicObstacle, PlanningProblem
+from planner.reference import FloatArray, ReferenceLine
+from planner.speed import target_speed
+from planner.st_bounds import frenet_extents, moving_obstacles
+
+
+def ego_times(
+    ref: ReferenceLine, problem: PlanningProblem, start: EgoFrenet, s: FloatArray, config: PlannerConfig
+) -> tuple[FloatArray, FloatArray]:
+    """The earliest and a late time [s] the planned point can be at arc lengths ``s`` [m] ahead of it.
+
+    Earliest: full acceleration from the ego's speed up to the faster of it and the target speed. Late:
+    ``nominal_acceleration_share`` of it up to the target speed, never faster than the reference's
+    curvature allows (``√(limit_margin · a_lat,max / |κ|)``) nor slower than ``nominal_floor_speed``,
+    the time stretched by ``late_factor``.
+    """
+    v0, a = max(problem.ego.speed, 0.0), problem.vehicle.max_acceleration
+    target = target_speed(problem)
+    ahead = np.maximum(np.asarray(s, dtype=float) - start.s, 0.0)
+    fast = max(v0, target)
+    reach_fast = max(fast**2 - v0**2, 0.0) / (2.0 * a)  # distance until full speed
+    accelerating = np.maximum((np.sqrt(v0**2 + 2.0 * a * np.minimum(ahead, reach_fast)) - v0) / a, 0.0)
+    early = accelerating + np.maximum(ahead - reach_fast, 0.0) / max(fast, 1e-9)
+    cfg = config.decision
+    grid = np.linspace(0.0, float(np.max(ahead, initial=0.0)) + 1e-9, 200)
+    kappa = np.abs(ref.kappa_at(start.s + grid))
+    with np.errstate(divide="ignore"):
+        curve = np.sqrt(config.limit_margin * problem.vehicle.max_lateral_acceleration / kappa)
+    gentle = np.sqrt(v0**2 + 2.0 * cfg.nominal_acceleration_share * a * grid)
+    speed = np.maximum(np.minimum(np.minimum(gentle, curve), target), cfg.nominal_floor_speed)
+    pace = 1.0 / speed
+    t_grid = np.concatenate(([0.0], np.cumsum(0.5 * (pace[1:] + pace[:-1]) * np.diff(grid))))
+    late = cfg.late_factor * np.interp(ahead, grid, t_grid)
+    return np.asarray(early), np.asarray(late)
+
+
+def _near_movers(
+    ref: ReferenceLine, movers: list[DynamicObstacle], t: FloatArray, s_lo: float, s_hi: float, reach: float
+) -> tuple[list[DynamicObstacle], list[FloatArray]]:
+    """The movers whose predicted centres come within ``reach`` [m] plus their own size of the reference
+    between ``s_lo`` and ``s_hi`` [m] at some time of ``t`` [s], with their states then."""
+    states = [prediction_at(ob, t) for ob in movers]
+    pts = np.concatenate(states)[:, :2]
+    dist, idx = ref.tree.query(pts)
+    size = np.repeat([np.hypot(ob.length, ob.width) for ob in movers], t.shape[0])
+    s_near = ref.s[idx]
+    close = (dist <= reach + size) & (s_near >= s_lo - reach) & (s_near <= s_hi + reach)
+    near = np.flatnonzero(close.reshape(len(movers), -1).any(axis=1))
+    return [movers[k] for k in near], [states[k] for k in near]
+
+
+def oncoming(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    corridor: Corridor,
+    band: float,
+    passing: frozenset[str],
+    config: PlannerConfig,
+) -> tuple[str, float] | None:
+    """The first moving obstacle (other than ``passing``) in the borrowed space where and while the
+    vehicle may be there, and from when [s]; None when it stays clear.
+
+    The borrowed space: beyond the lane's edge on the corridor's side (its narrowest over the stretch)
+    into the road as far as the vehicle needs (to the offset ``band`` [m], :func:`_needed`; traffic
+    farther out, as in a junction's other lanes, is not in its way), along the corridor's open stretch
+    and ramps, a vehicle length more either way. Where
+    the vehicle may be at time ``t``: its footprint (with ``obstacle_margin`` and ``stop_gap``) from its
+    late position at ``t − time_margin`` to its earliest at ``t + time_margin`` (:func:`ego_times`), until
+    the latest it leaves the space. So an oncoming vehicle conflicts where the two would meet in it, one
+    ahead and faster does not.
+    """
+    movers = [ob for ob in moving_obstacles(problem) if ob.id not in passing]
+    if not movers:
+        return None
+    v, cfg = problem.vehicle, config.decision
+    s_lo = corridor.start - corridor.ramp_in - v.length
+    s_hi = corridor.end + corridor.ramp_out + v.length
+    grid = np.linspace(start.s, max(s_hi, start.s + 1.0), 256)
+    early, late = ego_times(ref, problem, start, grid, config)
+    # predictions are for the horizon: beyond twice it, a late estimate says nothing
+    t_end = min(float(late[-1]) + cfg.time_margin, 2.0 * problem.options.horizon_time)
+    t = np.arange(0.0, t_end + cfg.check_step, cfg.check_step)
+    gap = config.obstacle_margin + config.stop_gap
+    ahead = np.interp(t + cfg.time_margin, early, grid) + v.front_extent + gap
+    behind = np.interp(t - cfg.time_margin, late, grid, left=start.s) - v.rear_extent - gap
+    occupied_lo, occupied_hi = np.maximum(behind, s_lo), np.minimum(ahead, s_hi)
+    span = np.linspace(s_lo, s_hi, 64)
+    lane_left, lane_right = problem.lane.widths(ref, span)
+    road_left, road_right = corridor.road.widths(ref, span)
+    reach = float(max(np.max(road_left), np.max(road_right)))
+    near, states = _near_movers(ref, movers, t, s_lo, s_hi, reach)
+    if not near:
+        return None
+    s_min, s_max, d_min, d_max = frenet_extents(ref, near, states)  # (K, T)
+    along = (s_max >= occupied_lo) & (s_min <= occupied_hi) & (occupied_lo <= occupied_hi)
+    if corridor.side == "left":
+        across = (d_max > float(np.min(lane_left))) & (d_min < min(float(np.max(road_left)), band))
+    else:
+        across = (d_min < -float(np.min(lane_right))) & (d_max > max(-float(np.max(road_right)), band))
+    inside = along & across
+    if not inside.any():
+        return None
+    first = np.where(inside.any(axis=1), np.argmax(inside, axis=1), inside.shape[1])
+    k = int(np.argmin(first))
+    return near[k].id, float(t[first[k]])
+
+
+@dataclass(frozen=True)
+class SlowVehicle:
+    """A slow vehicle ahead: its id, where its box starts [m] and the box it sweeps until the vehicle is
+    past it (None: not within the horizon)."""
+
+    obstacle_id: str
+    s: float
+    swept: FrenetBoxes | None
+
+
+def slow_vehicle(
+    ref: ReferenceLine, problem: PlanningProblem, start: EgoFrenet, at: FloatArray, config: PlannerConfig
+) -> SlowVehicle | None:
+    """The nearest moving obstacle ahead within the path's knots ``at`` [m] that leaves no room to pass
+    it in the lane and drives much slower than the target speed (along the reference, over the horizon),
+    and the box it sweeps until the vehicle, at its earliest (:func:`ego_times`), is ``pass_headway`` of
+    its speed (at least ``stop_gap``) ahead of it."""
+    movers = moving_obstacles(problem)
+    if not movers:
+        return None
+    cfg, v = config.decision, problem.vehicle
+    lane_left, lane_right = problem.lane.widths(ref, at)
+    now = np.zeros(1)
+    near, states = _near_movers(
+        ref, movers, now, start.s, float(at[-1]), float(max(np.max(lane_left), np.max(lane_right)))
+    )
+    if not near:
+        return None
+    # first where they are now (one mapping): in the way, and not yet passed
+    s_min, s_max, d_min, d_max = frenet_extents(ref, near, states)
+    left0, right0 = problem.lane.widths(ref, 0.5 * (s_min[:, 0] + s_max[:, 0]))
+    need = v.width + 2.0 * problem.options.lateral_margin
+    no_room = np.maximum(left0 - d_max[:, 0], d_min[:, 0] + right0) < need
+    ahead = (s_max[:, 0] + config.stop_gap >= start.s - v.rear_extent) & (s_min[:, 0] <= float(at[-1]))
+    near = [near[k] for k in np.flatnonzero(no_room & ahead)]
+    if not near:
+        return None
+    # then their tracks over the horizon
+    horizon = problem.options.horizon_time
+    t = np.linspace(0.0, horizon, max(2, int(np.ceil(horizon / cfg.track_step)) + 1))
+    s_min, s_max, d_min, d_max = frenet_extents(ref, near, [prediction_at(ob, t) for ob in near])
+    mid = 0.5 * (s_min + s_max)
+    speed = (mid[:, -1] - mid[:, 0]) / horizon
+    target = target_speed(problem)
+    slow = (speed < cfg.slow_share * target) & (speed < target - cfg.slow_margin)
+    gap = np.maximum(cfg.pass_headway * np.maximum(speed, 0.0), config.stop_gap)
+    not_passed = s_max[:, 0] + gap >= start.s - v.rear_extent
+    chosen = np.flatnonzero(slow & not_passed)
+    if chosen.size == 0:
+        return None
+    k = int(chosen[np.argmin(s_min[chosen, 0])])
+    early, _ = ego_times(ref, problem, start, np.linspace(start.s, float(at[-1]), 400), config)
+    ego_s = np.interp(t, early, np.linspace(start.s, float(at[-1]), 400), right=np.inf)
+    past = np.flatnonzero(ego_s - v.rear_extent >= s_max[k] + gap[k])
+    if past.size == 0:
+        return SlowVehicle(near[k].id, float(s_min[k, 0]), None)
+    upto = slice(0, int(past[0]) + 1)
+    swept = FrenetBoxes(
+        (near[k].id,),
+        np.array([float(np.min(s_min[k, upto]))]),
+        np.array([float(np.max(s_max[k, upto])) + gap[k]]),
+        np.array([float(np.min(d_min[k, upto]))]),
+        np.array([float(np.max(d_max[k, upto]))]),
+    )
+    return SlowVehicle(near[k].id, float(s_min[k, 0]), swept)

@@ -1,0 +1,252 @@
+"""The lane decision (issue 14): keep the lane, or borrow the road beyond it to get past what blocks it.
+
+Scenes on a two-lane road (right-hand traffic: the opposite lane on the left, `planner.roads`): a
+lane-wide parked truck with the opposite lane free (passes and returns), the same with an oncoming car
+(waits, never shares the opposite lane with it), a slow tractor on a straight (overtakes when clear), a
+right-hand hairpin tighter than the vehicle's smallest radius inside its lane (swings into the opposite
+lane), each without `road` (stops or follows as before), and the car model where it matters.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from planner.candidates import generate_candidates
+from planner.collision import box_corners, obstacle_shape, prediction_at
+from planner.decision import BlockKind, LaneChoice, ReasonKind
+from planner.frenet import to_frenet
+from planner.pipeline import plan
+from planner.problem import PlanningProblem, Road, Vehicle
+from planner.reference import build_reference
+from planner.result import PlanResult
+from planner.roads import (
+    HALF_LANE,
+    box,
+    demo_problem,
+    driving,
+    hairpin,
+    straight,
+    two_lane_problem,
+    wide_u_turn_problem,
+)
+from planner.validation import ViolationKind, folds_back, trajectory_violations
+from planner_tools.sim import Goal, SimResult, simulate
+
+#: the car of the issue: planned at its rear axle
+CAR = Vehicle(wheelbase=2.7, rear_axle_offset=1.35)
+VEHICLES = [pytest.param(None, id="point"), pytest.param(CAR, id="car")]
+
+
+def truck(*extra: object, road: bool = True, vehicle: Vehicle | None = None) -> PlanningProblem:
+    """A lane-wide truck parked 54–66 m ahead on a straight road, the ego at 10 m/s."""
+    obstacles = (box("truck", 60.0, 0.0, 12.0, 3.2), *extra)
+    return two_lane_problem(straight(200.0), obstacles=obstacles, road=road, vehicle=vehicle)  # type: ignore[arg-type]
+
+
+def tractor(road: bool = True) -> PlanningProblem:
+    """A 6 × 2.5 m tractor at 3 m/s 37 m ahead in the lane, the ego at 12 m/s."""
+    slow = driving("tractor", 40.0, 0.0, 3.0, length=6.0, width=2.5)
+    return two_lane_problem(straight(200.0), speed=12.0, obstacles=(slow,), road=road)
+
+
+def tight_hairpin(road: bool = True, vehicle: Vehicle | None = None) -> PlanningProblem:
+    """A right-hand U-turn of radius 4 m, tighter than the vehicle's 5 m, 15 m ahead of the ego at 5 m/s."""
+    reference = hairpin(4.0, leg=15.0)
+    return two_lane_problem(reference, speed=5.0, road=road, vehicle=vehicle)
+
+
+def in_road(problem: PlanningProblem, result: PlanResult) -> None:
+    """The answer passes every check: in the road, and in the lane unless it borrows."""
+    ref = build_reference(problem.reference_line)
+    static = [(ob.id, obstacle_shape(ob)) for ob in problem.obstacles]
+    borrowing = result.diagnostics.decision.borrows
+    assert trajectory_violations(ref, problem, result.trajectory, static, borrowing=borrowing) == []
+
+
+def corners_d(run: SimResult) -> np.ndarray:
+    """Every driven sample's footprint corners' offsets d [m], shape (n, 4)."""
+    m, v = run.motion, run.problem.vehicle
+    corners = box_corners(m.x, m.y, m.yaw, v.length, v.width).reshape(-1, 2)
+    return np.asarray(to_frenet(run.reference, corners).d.reshape(-1, 4))
+
+
+def test_nothing_in_the_way_keeps_the_lane() -> None:
+    decision = plan(demo_problem()).diagnostics.decision
+    assert decision.lane is LaneChoice.KEEP
+    assert decision.reason.kind is ReasonKind.LANE_FREE
+    assert decision.reason.message == "the lane is free"
+    free = plan(two_lane_problem(straight(200.0))).diagnostics.decision
+    assert free.lane is LaneChoice.KEEP and free.reason.kind is ReasonKind.LANE_FREE
+
+
+def test_a_parked_truck_without_road_stops_as_before_and_says_what_blocks() -> None:
+    result = plan(truck(road=False))
+    assert result.status == "stopped"
+    assert result.message.startswith("the road is blocked")
+    reason = result.diagnostics.decision.reason
+    assert result.diagnostics.decision.lane is LaneChoice.KEEP
+    assert (reason.kind, reason.block, reason.obstacle_id) == (
+        ReasonKind.NO_ROAD,
+        BlockKind.OBSTACLE,
+        "truck",
+    )
+    assert "obstacle truck blocks the lane" in reason.message
+
+
+def test_a_parked_truck_with_the_opposite_lane_free_is_passed_on_the_left() -> None:
+    problem = truck()
+    result = plan(problem)
+    decision = result.diagnostics.decision
+    assert result.status == "ok"
+    assert decision.lane is LaneChoice.BORROW_LEFT
+    assert (decision.reason.kind, decision.reason.block) == (ReasonKind.PASSING, BlockKind.OBSTACLE)
+    assert decision.reason.obstacle_id == "truck" and 45.0 < (decision.reason.s or 0.0) < 60.0
+    assert "obstacle truck blocks the lane" in result.message
+    assert float(np.max(result.trajectory.d)) > HALF_LANE  # into the opposite lane
+    in_road(problem, result)
+
+
+@pytest.mark.parametrize("vehicle", VEHICLES)
+def test_a_parked_truck_is_passed_and_the_lane_taken_again(vehicle: Vehicle | None) -> None:
+    run = simulate(truck(vehicle=vehicle), duration=16.0, goal=Goal(s_min=100.0))
+    m = run.metrics
+    assert m.termination == "goal" and m.collisions == 0
+    assert m.status_counts["fallback"] == m.status_counts["error"] == 0
+    assert m.max_lane_departure > 1.0  # it used the opposite lane
+    assert m.max_road_departure <= 1e-3  # never off the road
+    d = corners_d(run)
+    assert abs(float(run.motion.d[-1])) < 0.3 and np.all(np.abs(d[-1]) <= HALF_LANE)  # back in its lane
+    borrowed = [st for st in run.steps if st.decision is not None and st.decision.borrows]
+    assert borrowed and run.steps[-1].decision is not None and not run.steps[-1].decision.borrows
+
+
+def test_an_oncoming_car_is_waited_for_and_never_met_in_the_opposite_lane() -> None:
+    car = driving("car", 160.0, 2.0 * HALF_LANE, -10.0)
+    problem = truck(car)
+    first = plan(problem)
+    decision = first.diagnostics.decision
+    assert first.status == "stopped" and decision.lane is LaneChoice.KEEP
+    assert decision.reason.kind is ReasonKind.ONCOMING and decision.reason.oncoming_id == "car"
+    assert decision.reason.obstacle_id == "truck" and decision.reason.t is not None
+    assert "waiting" in first.message
+    in_road(problem, first)
+    run = simulate(problem, duration=30.0, goal=Goal(s_min=100.0))
+    assert run.metrics.termination == "goal" and run.metrics.collisions == 0
+    assert run.metrics.max_road_departure <= 1e-3
+    # whenever a corner of the ego is in the opposite lane, the car has passed it
+    out = np.any(corners_d(run) > HALF_LANE + 1e-3, axis=1)
+    assert out.any()
+    car_front = prediction_at(car, run.motion.t)[:, 0] - 0.5 * car.length
+    ego_rear = run.motion.x - 0.5 * problem.vehicle.length
+    assert np.all(car_front[out] < ego_rear[out])
+
+
+def test_an_ego_already_in_the_opposite_lane_goes_back_and_waits_when_a_car_comes() -> None:
+    car = driving("car", 160.0, 2.0 * HALF_LANE, -10.0)
+    problem = truck(car)
+    problem = replace(problem, ego=replace(problem.ego, y=2.0 * HALF_LANE))  # in the opposite lane
+    result = plan(problem)
+    decision = result.diagnostics.decision
+    assert result.status == "stopped" and decision.lane is LaneChoice.BORROW_LEFT  # still outside
+    assert decision.reason.kind is ReasonKind.ONCOMING and decision.reason.oncoming_id == "car"
+    in_road(problem, result)
+    # back in its lane (the footprint within it), stopped before the truck
+    traj = result.trajectory
+    assert abs(float(traj.d[-1])) + 0.5 * problem.vehicle.width < HALF_LANE
+    assert float(traj.v[-1]) < 0.05 and float(traj.x[-1]) + 2.25 < 54.0
+
+
+def test_a_slow_tractor_is_overtaken_when_the_opposite_lane_is_clear() -> None:
+    problem = tractor()
+    first = plan(problem)
+    decision = first.diagnostics.decision
+    assert decision.lane is LaneChoice.BORROW_LEFT
+    assert (decision.reason.block, decision.reason.obstacle_id) == (BlockKind.SLOW_VEHICLE, "tractor")
+    assert decision.passing == frozenset({"tractor"})
+    run = simulate(problem, duration=14.0, goal=Goal(s_min=120.0))
+    m = run.metrics
+    assert m.termination == "goal" and m.collisions == 0 and m.max_road_departure <= 1e-3
+    tractor_front = 40.0 + 3.0 * float(run.motion.t[-1]) + 3.0
+    assert float(run.motion.x[-1]) - 2.25 > tractor_front  # ahead of it
+    assert abs(float(run.motion.d[-1])) < 0.3  # back in its lane
+
+
+def test_without_road_a_slow_tractor_is_followed() -> None:
+    result = plan(tractor(road=False))
+    assert result.status == "ok"
+    assert result.diagnostics.decision.lane is LaneChoice.KEEP
+    assert float(np.max(np.abs(result.trajectory.d))) < HALF_LANE
+
+
+@pytest.mark.parametrize("vehicle", VEHICLES)
+def test_a_hairpin_tighter_than_the_vehicle_swings_into_the_opposite_lane(vehicle: Vehicle | None) -> None:
+    problem = tight_hairpin(vehicle=vehicle)
+    first = plan(problem)
+    decision = first.diagnostics.decision
+    assert decision.lane is LaneChoice.BORROW_LEFT  # the outside of a right turn
+    assert decision.reason.block is BlockKind.BEND and decision.reason.obstacle_id is None
+    assert "the bend at s =" in decision.reason.message
+    run = simulate(problem, duration=20.0, goal=Goal(s_min=35.0))
+    m = run.metrics
+    assert m.termination == "goal" and m.status_counts["fallback"] == 0
+    assert m.max_lane_departure > 0.3 and m.max_road_departure <= 1e-3
+
+
+def test_without_road_the_hairpin_stops_before_the_bend() -> None:
+    result = plan(tight_hairpin(road=False))
+    assert result.status == "stopped"
+    reason = result.diagnostics.decision.reason
+    assert (reason.kind, reason.block) == (ReasonKind.NO_ROAD, BlockKind.BEND)
+
+
+def test_a_road_no_wider_than_the_lane_keeps_it_and_says_so() -> None:
+    problem = truck()
+    narrow = replace(problem, road=Road(HALF_LANE, HALF_LANE))
+    result = plan(narrow)
+    assert result.status == "stopped"
+    reason = result.diagnostics.decision.reason
+    assert result.diagnostics.decision.lane is LaneChoice.KEEP
+    assert (reason.kind, reason.obstacle_id) == (ReasonKind.ROAD_BLOCKED, "truck")
+    assert "leaves no room" in result.message
+
+
+def test_the_borrowed_corridor_on_a_wide_u_turn_folds_naive_candidates_not_repaired_ones() -> None:
+    problem = wide_u_turn_problem()
+    decision = plan(problem).diagnostics.decision
+    assert decision.lane is LaneChoice.BORROW_LEFT and decision.corridor is not None
+    ref = build_reference(problem.reference_line)
+    s = np.linspace(decision.corridor.start, decision.corridor.end, 20)
+    assert np.max(ref.kappa_at(s) * decision.corridor.widths(ref, s)[0]) > 1.0  # beyond the centre
+    folded = {}
+    for generator in ("naive", "transf_kappa"):
+        options = replace(problem.options, generator=generator, num_candidates=40)
+        cands = generate_candidates(ref, decision.corridor, problem.ego, problem.vehicle, options)
+        folded[generator] = sum(folds_back(ref, cands.points(i)[2]) for i in range(cands.count))
+    assert folded["naive"] >= 1
+    assert folded["transf_kappa"] == 0
+
+
+def test_the_decision_never_changes_a_lane_keeping_answer() -> None:
+    """Without road, and with a road when nothing blocks the lane, the answer is the same."""
+    base = demo_problem()
+    widened = replace(base, road=Road(20.0, base.lane.right_width))
+    for problem in (two_lane_problem(straight(200.0)), widened):
+        without = plan(replace(problem, road=None))
+        with_road = plan(problem)
+        assert with_road.status == without.status and with_road.message == without.message
+        for name in ("x", "y", "v", "d"):
+            assert np.array_equal(getattr(with_road.trajectory, name), getattr(without.trajectory, name))
+
+
+def test_a_borrow_that_leaves_the_road_is_a_violation() -> None:
+    problem = truck()
+    result = plan(problem)
+    ref = build_reference(problem.reference_line)
+    narrow = replace(problem, road=Road(2.0, HALF_LANE))
+    kinds = {v.kind for v in trajectory_violations(ref, narrow, result.trajectory, [], borrowing=True)}
+    assert ViolationKind.ROAD in kinds and ViolationKind.LANE not in kinds
+    kinds = {v.kind for v in trajectory_violations(ref, problem, result.trajectory, [], borrowing=False)}
+    assert kinds == {ViolationKind.LANE}

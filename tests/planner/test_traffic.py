@@ -1,0 +1,67 @@
+"""The moving obstacles of the lane decision: nominal times, slow vehicles, traffic in the borrowed road."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from planner.config import DEFAULT_CONFIG
+from planner.ego import start_state
+from planner.problem import Options
+from planner.reference import build_reference
+from planner.roads import driving, straight, two_lane_problem
+from planner.traffic import ego_times, slow_vehicle
+
+ROAD = straight(300.0)
+REF = build_reference(ROAD)
+
+
+@settings(max_examples=40, deadline=None)
+@given(speed=st.floats(0.0, 30.0), target=st.floats(1.0, 30.0))
+def test_the_earliest_time_is_never_later_than_the_late_one_and_both_grow_along_the_road(
+    speed: float, target: float
+) -> None:
+    problem = two_lane_problem(ROAD, speed=speed)
+    problem = replace(problem, options=Options(target_speed=target))
+    start = start_state(REF, problem)
+    s = np.linspace(start.s, start.s + 200.0, 101)
+    early, late = ego_times(REF, problem, start, s, DEFAULT_CONFIG)
+    assert early[0] == pytest.approx(0.0, abs=1e-12) and late[0] == 0.0
+    assert np.all(np.diff(early) > 0.0) and np.all(np.diff(late) > 0.0)
+    assert np.all(early <= late + 1e-9)
+    # at full acceleration up to the faster of the two speeds: never quicker than that speed allows
+    assert np.all(early >= (s - start.s) / max(speed, target) - 1e-9)
+
+
+def test_the_earliest_time_is_exact_on_a_straight_road() -> None:
+    problem = two_lane_problem(ROAD, speed=0.0)
+    problem = replace(problem, options=Options(target_speed=10.0))
+    start = start_state(REF, problem)
+    a = problem.vehicle.max_acceleration
+    early, _ = ego_times(REF, problem, start, np.array([8.0, 100.0]), DEFAULT_CONFIG)
+    # 8 m from a standstill at a: √(2·8/a); 100 m: 10/a s to reach 10 m/s over 50/a m, then at 10 m/s
+    assert early[0] == np.sqrt(2.0 * 8.0 / a)
+    np.testing.assert_allclose(early[1], 10.0 / a + (100.0 - 50.0 / a) / 10.0)
+
+
+def test_a_slow_vehicle_in_the_lane_sweeps_a_box_until_the_vehicle_is_past_it() -> None:
+    tractor = driving("tractor", 40.0, 0.0, 3.0, length=6.0, width=2.5)
+    problem = two_lane_problem(ROAD, speed=12.0, obstacles=(tractor,))
+    start = start_state(REF, problem)
+    at = np.linspace(start.s, start.s + 150.0, 241)
+    slow = slow_vehicle(REF, problem, start, at, DEFAULT_CONFIG)
+    assert slow is not None and slow.obstacle_id == "tractor" and slow.swept is not None
+    assert slow.s == pytest.approx(37.0, abs=1e-6)  # its rear now
+    assert slow.swept.s_min[0] <= 37.0 + 1e-6 and slow.swept.s_max[0] > 43.0  # from now until passed
+    # a vehicle as fast as the target, or one beside the lane, is no slow vehicle
+    for other in (driving("car", 40.0, 0.0, 12.0), driving("car", 40.0, 3.5, 3.0)):
+        assert (
+            slow_vehicle(
+                REF, two_lane_problem(ROAD, speed=12.0, obstacles=(other,)), start, at, DEFAULT_CONFIG
+            )
+            is None
+        )
