@@ -87,6 +87,55 @@ def curvature_allowance(
     )
 
 
+def curvature_rate_allowance(
+    s: FloatArray,
+    start: EgoFrenet,
+    problem: PlanningProblem,
+    config: PlannerConfig = DEFAULT_CONFIG,
+    braking_share: float = 0.5,
+) -> FloatArray | None:
+    """Largest rate of change of a car's path curvature ``|dκ/dσ|`` [1/m²] at knots ``s`` [m] that keeps
+    its steering rate within ``steering_rate_share · δ̇_max`` at the speed ``v`` it can at best have
+    slowed to there (braking at ``braking_share`` of its deceleration from ``v₀``, as
+    :func:`curvature_allowance`): ``|dδ/dt| = v · W/(1 + W²κ²) · |dκ/dσ| ≤ v · W · |dκ/dσ|``
+    (:mod:`planner.kinematics`), so ``|dκ/dσ| ≤ share · δ̇_max / (W v)`` (``inf`` where it can stand).
+    The speed profile slows for what the path asks (its steering-rate speed limit); this bound keeps
+    the path to what braking can make drivable — a path that turns faster than that right ahead of a
+    fast vehicle breaks the limit whatever the profile does. None for the point model or a car
+    without ``max_steering_rate``."""
+    v = problem.vehicle
+    if v.wheelbase is None or v.max_steering_rate is None:
+        return None
+    travelled = np.maximum(s - start.s, 0.0)
+    slowed = problem.ego.speed**2 - 2.0 * braking_share * v.max_deceleration * travelled
+    speed = np.sqrt(np.maximum(slowed, 0.0))
+    rate = config.speed.steering_rate_share * v.max_steering_rate / v.wheelbase
+    with np.errstate(divide="ignore"):
+        return np.asarray(np.where(speed > 0.0, rate / np.maximum(speed, 1e-300), np.inf))
+
+
+def jerk_bounds(
+    s: FloatArray, kappa: FloatArray, one: FloatArray, rate: FloatArray, jerk: float
+) -> tuple[FloatArray, FloatArray]:
+    """Bounds on ``d‴`` [1/m²] per interval of knots ``s`` [m] (reference curvature ``κ`` [1/m] and
+    ``1 − κd`` there) within ``±jerk`` that keep the path's ``|dκ_x/dσ|`` within ``rate`` [1/m²] at the
+    interval's first knot (see :func:`lateral_qp`): ``Δd″ ∈ (1 − κd)²·(±rate·(1 − κd)·Δs − Δ(κ/(1 − κd)))``.
+    Where the reference's own change is steeper than that, the bounds still include 0 (following the
+    reference; the speed profile slows for it), so that holding ``d″`` stays feasible."""
+    ds = np.diff(s)
+    stretch = np.minimum(one[:-1], one[1:])
+    own = np.diff(kappa / one)
+    with np.errstate(over="ignore", invalid="ignore"):
+        reach = rate[:-1] * stretch * ds
+        lo = stretch**2 * (-reach - own) / ds
+        hi = stretch**2 * (reach - own) / ds
+    lo = np.nan_to_num(lo, nan=-np.inf)  # no rate bound (a vehicle that may stand there): inf − inf
+    hi = np.nan_to_num(hi, nan=np.inf)
+    lower = np.clip(np.minimum(lo, 0.0), -jerk, 0.0)
+    upper = np.clip(np.maximum(hi, 0.0), 0.0, jerk)
+    return np.asarray(lower), np.asarray(upper)
+
+
 def lateral_qp(
     solver: LateralQPSolver,
     bounds: LateralBounds,
@@ -96,12 +145,19 @@ def lateral_qp(
     allowance: FloatArray,
     config: LateralConfig,
     time_limit_s: float | None = None,
+    rate_allowance: FloatArray | None = None,
 ) -> LateralQPResult:
-    """Piecewise-jerk QP on ``d(s)``; ``d″`` bounds linearised at ``d_ref`` keep ``|κ_path| ≤ allowance``.
+    """Piecewise-jerk QP on ``d(s)``; ``d″`` bounds linearised at ``d_ref`` keep ``|κ_path| ≤ allowance``,
+    the jerk ``|d‴| ≤ jerk`` and, when given, ``|dκ_path/dσ| ≤ rate_allowance`` (per knot).
 
     For small ``d′`` the path's curvature is ``κ_x ≈ (d″/(1 − κd) + κ)/(1 − κd)``, so
     ``|κ_x| ≤ c`` ⇔ ``(−c(1 − κd) − κ)(1 − κd) ≤ d″ ≤ (c(1 − κd) − κ)(1 − κd)``, with ``1 − κd`` taken
     at ``d_ref`` (at least ``min_stretch``). The bounds are tightened by ``qp_slack`` [m].
+
+    The rate (:func:`jerk_bounds`): over interval ``i``, ``Δκ_x ≈ Δd″/(1 − κd)² + Δ(κ/(1 − κd))`` and
+    ``Δσ ≈ (1 − κd) Δs``, both with the smaller ``1 − κd`` of its ends; so the path also evens out the
+    reference's own changes of curvature (a fitted polyline's ripple) where they alone would turn the
+    wheel too fast.
     """
     s = bounds.s
     lower = bounds.lower + config.qp_slack
@@ -111,12 +167,17 @@ def lateral_qp(
     with np.errstate(over="ignore"):  # a curvature limit near the largest float: ±inf, no bound
         ddd_upper = (allowance * one - kappa) * one
         ddd_lower = (-allowance * one - kappa) * one
+    jerk_lower = jerk_upper = None
+    if rate_allowance is not None:
+        jerk_lower, jerk_upper = jerk_bounds(s, kappa, one, rate_allowance, config.jerk)
     problem = LateralQPProblem(
         ds=float(s[1] - s[0]),
         d_lower=lower,
         d_upper=upper,
         d_ref=np.clip(d_ref, lower, upper),
         jerk_max=config.jerk,
+        jerk_lower=jerk_lower,
+        jerk_upper=jerk_upper,
         d0=start.d,
         dd0=start.dd,
         ddd0=start.ddd,
@@ -248,7 +309,8 @@ def _attempt(
     (and OSQP's own iterates beside the second backend's), the first in the lane, then solved."""
     bounds, d_ref = corridor.bounds, corridor.d_ref
     allowance = curvature_allowance(bounds.s, start, problem, config, braking_share)
-    qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
+    rate = curvature_rate_allowance(bounds.s, start, problem, config, braking_share)
+    qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate)
     if qp.info.converged and qp.first is None:  # OSQP solved it: nothing to choose from
         return _Attempt(corridor, qp, lambda: _in_lane(ref, problem, bounds.s, qp, corridor.surface))
     # Where the second backend answered, OSQP's own iterate comes along: an exact path may press a bound
@@ -260,7 +322,7 @@ def _attempt(
         # too fast for the road, or no path in the lane: try the vehicle's own curvature limit
         limit = config.lateral.retry_curvature_share * problem.vehicle.curvature_limit
         allowance = np.full(bounds.s.shape, limit)
-        retry = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
+        retry = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate)
         more = [r for r in (retry, retry.first) if r is not None and r.info.usable]
         inside += [_in_lane(ref, problem, bounds.s, r, corridor.surface) for r in more]
         options = options + more
