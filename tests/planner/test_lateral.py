@@ -28,16 +28,18 @@ from scenario_roads import Road, arc_piece, straight_piece
 
 from planner.config import DEFAULT_CONFIG, LateralConfig
 from planner.ego import EgoFrenet
-from planner.lateral import curvature_allowance, knots
+from planner.lateral import curvature_allowance, curvature_rate_allowance, jerk_bounds, knots
 from planner.pipeline import plan
 from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import build_reference
 from planner.roads import straight, u_turn
+from planner.validation import ViolationKind, car_violations
 from planner_tools.io import problem_from_json
 from planner_tools.sim import shift_obstacle
 from solvers.result import SolverStatus
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "commonroad"
+ROAD_DATA = DATA.parent / "commonroad-road"
 CONVERGED = (SolverStatus.SOLVED, SolverStatus.SOLVED_INACCURATE)
 #: the vehicle of the CommonRoad requests
 CAR = Vehicle(
@@ -97,6 +99,85 @@ def test_the_curvature_bound_is_the_vehicles_within_what_the_speed_allows() -> N
         allowance, np.minimum(0.9 * v.max_curvature, 0.9 * v.max_lateral_acceleration / v_sq)
     )
     assert allowance[0] < allowance[-1]  # slower farther on: tighter curves
+
+
+#: CommonRoad's vehicle type 2 (BMW 320i) as the closed loops drive it
+BMW = replace(
+    CAR,
+    max_curvature=float(np.tan(1.066)) / 2.5789128,
+    wheelbase=2.5789128,
+    rear_axle_offset=1.4227170936,
+    max_steering_angle=1.066,
+    max_steering_rate=0.4,
+)
+
+
+def test_the_curvature_rate_bound_keeps_the_steering_rate_at_the_least_speed_braking_leaves() -> None:
+    line = np.array([[0.0, 0.0], [200.0, 0.0]])
+    problem = PlanningProblem(line, Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, 20.0), vehicle=BMW)
+    s = np.linspace(10.0, 60.0, 11)
+    rate = curvature_rate_allowance(s, START, problem, braking_share=0.5)
+    assert rate is not None
+    # |dδ/dt| ≤ v·W·|dκ/dσ| ≤ 0.9·0.4 rad/s at v² = 400 − 8·travelled (half of 8 m/s²)
+    speed = np.sqrt(np.maximum(400.0 - 8.0 * (s - 10.0), 0.0))
+    with np.errstate(divide="ignore"):
+        expected = np.where(speed > 0.0, 0.36 / (BMW.wheelbase * np.maximum(speed, 1e-300)), np.inf)
+    np.testing.assert_allclose(rate, expected)
+    assert rate[0] == pytest.approx(0.36 / (2.5789128 * 20.0))
+    assert np.isposinf(rate[-1])  # it can stand there: no bound
+    assert np.all(np.diff(rate) >= 0.0)  # slower farther on: the wheel may turn faster per metre
+    # the point model and a car without a steering-rate limit have none
+    assert curvature_rate_allowance(s, START, replace(problem, vehicle=CAR)) is None
+    free = replace(BMW, max_steering_rate=None)
+    assert curvature_rate_allowance(s, START, replace(problem, vehicle=free)) is None
+
+
+def test_the_jerk_bounds_even_out_the_references_curvature_and_always_allow_holding() -> None:
+    s = np.arange(6) * 0.5
+    one = np.ones(6)
+    flat = np.zeros(6)
+    rate = np.full(6, 0.02)
+    lower, upper = jerk_bounds(s, flat, one, rate, 0.5)
+    np.testing.assert_allclose(lower, -0.02)
+    np.testing.assert_allclose(upper, 0.02)
+    # a ripple of the reference's curvature (+0.004 1/m over one interval): the path's d‴ must undo it
+    # within the rate: d‴ ∈ −0.008 ± 0.02 there
+    ripple = np.array([0.0, 0.0, 0.004, 0.004, 0.004, 0.004])
+    lower, upper = jerk_bounds(s, ripple, one, rate, 0.5)
+    assert (lower[1], upper[1]) == pytest.approx((-0.028, 0.012))
+    # a step steeper than the rate allows (+0.1 1/m): d‴ ∈ −0.2 ± 0.02, widened to keep 0 (following the
+    # reference is what the speed profile slows for), and within the comfort jerk
+    step = np.array([0.0, 0.0, 0.1, 0.1, 0.1, 0.1])
+    lower, upper = jerk_bounds(s, step, one, rate, 0.5)
+    assert (lower[1], upper[1]) == pytest.approx((-0.22, 0.0))
+    assert np.all(lower <= 0.0) and np.all(upper >= 0.0) and np.all(lower >= -0.5)
+    # where the vehicle may stand there is no rate bound, only the comfort jerk
+    lower, upper = jerk_bounds(s, flat, one, np.full(6, np.inf), 0.5)
+    np.testing.assert_allclose(lower, -0.5)
+    np.testing.assert_allclose(upper, 0.5)
+
+
+def test_zam_over_swerving_with_road_keeps_the_steering_rate() -> None:
+    """ZAM_Over-1_1 with the whole road, CommonRoad's car, the closed loop's state at 0.1 s: swerving
+    round the lane-wide obstacle 1402 from 19.9 m/s, the path reversed its curvature at 9 m/s where
+    the steering could not follow (0.403 rad/s > 0.4), and the fallback, the vehicle's limits first,
+    braked straight into the obstacle."""
+    problem = problem_from_json(json.loads((ROAD_DATA / "ZAM_Over-1_1.json").read_text()))
+    ego = Ego(
+        x=31.988632798155468,
+        y=-1.0612730430670965,
+        heading=0.04415847561853791,
+        speed=19.861896523558578,
+        acceleration=-2.7248148265678727,
+        curvature=0.008986764279133738,
+    )
+    problem = replace(problem, ego=ego, vehicle=BMW, options=replace(problem.options, speed_limit=23.0))
+    result = plan(problem)
+    assert result.status != "error"
+    assert result.diagnostics.decision.borrows
+    kinds = {v.kind for v in car_violations(problem.vehicle, result.trajectory)}
+    assert ViolationKind.STEERING_RATE not in kinds
+    assert not result.violations, result.message
 
 
 @pytest.mark.parametrize("curved", [False, True], ids=["straight", "left-curve"])
