@@ -24,15 +24,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.bounds import LateralBounds, lateral_bounds, pass_left
-from planner.collision import FrenetBoxes, box_hits, footprint_extent
+from planner.collision import FrenetBoxes, box_corners, box_hits, footprint_extent
 from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
 from planner.ego import EgoFrenet
+from planner.frenet import to_frenet
 from planner.kinematics import body_centre, lateral_curvature
 from planner.lane import lane_bounds
 from planner.problem import Lane, PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Path, frenet_path
-from planner.validation import leaves_lane
+from planner.validation import LANE_TOLERANCE, leaves_lane
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
 from solvers.result import SolveInfo
 
@@ -345,6 +346,22 @@ def _in_lane(
     return not bool(np.any(leaves_lane(ref, problem, x, y, path.heading, surface)))
 
 
+def _leaves_from(
+    ref: ReferenceLine, problem: PlanningProblem, path: Path, surface: Lane, reach: float
+) -> int | None:
+    """The first knot of ``path`` before ``reach`` [m] (beyond it the vehicle never gets: the lane's end)
+    where the footprint leaves ``surface`` (at least 1), or None; None too where it starts outside (a
+    vehicle coming back into its lane from the road)."""
+    x, y = body_centre(path.x, path.y, path.heading, problem.vehicle)
+    first = box_corners(x[:1], y[:1], path.heading[:1], problem.vehicle.length, problem.vehicle.width)
+    fr = to_frenet(ref, first.reshape(-1, 2))
+    left, right = surface.widths(ref, fr.s)
+    if float(np.max(np.maximum(fr.d - left, -right - fr.d))) > LANE_TOLERANCE:
+        return None
+    out = np.flatnonzero(leaves_lane(ref, problem, x, y, path.heading, surface) & (path.s < reach))
+    return None if out.size == 0 else max(int(out[0]), 1)
+
+
 def _sides(boxes: FrenetBoxes, left_of: NDArray[np.bool_], sides: Mapping[str, bool]) -> NDArray[np.bool_]:
     """``left_of`` with the sides a decision fixed (obstacle id → passed on its left) put in."""
     if not sides:
@@ -367,6 +384,8 @@ class LateralPlan:
         held: whether ``path`` holds the ego's offset because the QP left no room to steer.
         obstacle_on_hold: whether an obstacle on the held offset is the block.
         waiting: whether the block is a line to wait at before the lane's own (:meth:`stopping_at`).
+        leaves: whether the block is where the QP's path leaves the lane although its bounds let it
+            through (a bend too tight for the footprint, where the bounds' linearisation fails).
     """
 
     path: Path | None
@@ -377,6 +396,7 @@ class LateralPlan:
     held: bool = False
     obstacle_on_hold: bool = False
     waiting: bool = False
+    leaves: bool = False
 
     @property
     def knots(self) -> int:
@@ -386,7 +406,7 @@ class LateralPlan:
     @property
     def block_at(self) -> float:
         """Where a block stops the path [m] (the bounds end before the bounds' own block)."""
-        at_knot = self.obstacle_on_hold or self.waiting
+        at_knot = self.obstacle_on_hold or self.waiting or self.leaves
         return float(self.bounds.s[self.blocked]) if at_knot else float(self.bounds.s[-1])
 
     @property
@@ -444,6 +464,13 @@ def lateral_stage(
     held = bounds.blocked is not None and not (qp.info.converged or attempt.in_lane)
     if qp.info.usable and not held:
         path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
+        if bounds.blocked is None and not attempt.in_lane:
+            # the bounds let the footprint through where the path leaves the lane: that is the block
+            # (stop before it; the lane decision may borrow the road round it)
+            reach = ref.length - problem.vehicle.front_extent - config.stop_gap
+            out = _leaves_from(ref, problem, path, attempt.corridor.surface, reach)
+            if out is not None:
+                return LateralPlan(path, qp.info, bounds, out, False, leaves=True)
         return LateralPlan(path, qp.info, bounds, bounds.blocked, road_end)
     if bounds.blocked is None:
         return LateralPlan(None, qp.info, bounds, None, road_end)

@@ -180,6 +180,20 @@ def test_zam_over_swerving_with_road_keeps_the_steering_rate() -> None:
     assert not result.violations, result.message
 
 
+def test_aarschot_where_the_path_leaves_the_lane_in_the_hairpin_is_the_block() -> None:
+    """BEL_Aarschot-3_1's first cycle, CommonRoad's car (turning to 0.70 1/m): the lateral bounds let
+    the footprint through the 2.4 m hairpin, but the QP's path (bounds linearised at the candidate's
+    heading) leaves the lane there, and every cycle was a fallback. Where it leaves is the block: the
+    plan stops before it (and, with a road, the lane decision may borrow it)."""
+    problem = problem_from_json(json.loads((DATA / "BEL_Aarschot-3_1_T-1.json").read_text()))
+    problem = replace(problem, vehicle=BMW)
+    result = plan(problem)
+    assert result.status == "stopped", result.message
+    assert not result.violations
+    assert result.diagnostics.decision.reason.block is not None  # what blocks: the bend
+    assert result.diagnostics.decision.reason.block.value == "bend"
+
+
 @pytest.mark.parametrize("curved", [False, True], ids=["straight", "left-curve"])
 @pytest.mark.parametrize("d0", [0.0, 0.3])
 def test_a_lane_closing_at_the_references_end_does_not_bend_the_path_before_it(
