@@ -115,21 +115,29 @@ def curvature_rate_allowance(
         return np.asarray(np.where(speed > 0.0, rate / np.maximum(speed, 1e-300), np.inf))
 
 
+def reference_jerk(s: FloatArray, kappa: FloatArray, one: FloatArray) -> FloatArray:
+    """The jerk ``d‴`` [1/m²] per interval of knots ``s`` [m] that evens out the reference's own change
+    of curvature (``κ`` [1/m], ``1 − κd`` at the knots): ``−(1 − κd)² Δ(κ/(1 − κd)) / Δs``, the smaller
+    ``1 − κd`` of the interval's ends (see :func:`lateral_qp`)."""
+    stretch = np.minimum(one[:-1], one[1:])
+    return np.asarray(-(stretch**2) * np.diff(kappa / one) / np.diff(s))
+
+
 def jerk_bounds(
     s: FloatArray, kappa: FloatArray, one: FloatArray, rate: FloatArray, jerk: float
 ) -> tuple[FloatArray, FloatArray]:
     """Bounds on ``d‴`` [1/m²] per interval of knots ``s`` [m] (reference curvature ``κ`` [1/m] and
     ``1 − κd`` there) within ``±jerk`` that keep the path's ``|dκ_x/dσ|`` within ``rate`` [1/m²] at the
-    interval's first knot (see :func:`lateral_qp`): ``Δd″ ∈ (1 − κd)²·(±rate·(1 − κd)·Δs − Δ(κ/(1 − κd)))``.
+    interval's first knot (see :func:`lateral_qp`): ``d‴ ∈ r ± rate·(1 − κd)³`` about the
+    :func:`reference_jerk` ``r``.
     Where the reference's own change is steeper than that, the bounds still include 0 (following the
     reference; the speed profile slows for it), so that holding ``d″`` stays feasible."""
-    ds = np.diff(s)
     stretch = np.minimum(one[:-1], one[1:])
-    own = np.diff(kappa / one)
+    own = reference_jerk(s, kappa, one)
     with np.errstate(over="ignore", invalid="ignore"):
-        reach = rate[:-1] * stretch * ds
-        lo = stretch**2 * (-reach - own) / ds
-        hi = stretch**2 * (reach - own) / ds
+        reach = rate[:-1] * stretch**3
+        lo = own - reach
+        hi = own + reach
     lo = np.nan_to_num(lo, nan=-np.inf)  # no rate bound (a vehicle that may stand there): inf − inf
     hi = np.nan_to_num(hi, nan=np.inf)
     lower = np.clip(np.minimum(lo, 0.0), -jerk, 0.0)
@@ -147,6 +155,7 @@ def lateral_qp(
     config: LateralConfig,
     time_limit_s: float | None = None,
     rate_allowance: FloatArray | None = None,
+    smooth: bool = False,
 ) -> LateralQPResult:
     """Piecewise-jerk QP on ``d(s)``; ``d″`` bounds linearised at ``d_ref`` keep ``|κ_path| ≤ allowance``,
     the jerk ``|d‴| ≤ jerk`` and, when given, ``|dκ_path/dσ| ≤ rate_allowance`` (per knot).
@@ -158,7 +167,9 @@ def lateral_qp(
     The rate (:func:`jerk_bounds`): over interval ``i``, ``Δκ_x ≈ Δd″/(1 − κd)² + Δ(κ/(1 − κd))`` and
     ``Δσ ≈ (1 − κd) Δs``, both with the smaller ``1 − κd`` of its ends; so the path also evens out the
     reference's own changes of curvature (a fitted polyline's ripple) where they alone would turn the
-    wheel too fast.
+    wheel too fast. With ``smooth`` (and a rate allowance) the jerk term costs the path's own curvature
+    rate rather than the offset's (:func:`reference_jerk`): the path eases into the reference's bends
+    (a car's steering cannot jump), cutting them within the bounds.
     """
     s = bounds.s
     lower = bounds.lower + config.qp_slack
@@ -168,9 +179,10 @@ def lateral_qp(
     with np.errstate(over="ignore"):  # a curvature limit near the largest float: ±inf, no bound
         ddd_upper = (allowance * one - kappa) * one
         ddd_lower = (-allowance * one - kappa) * one
-    jerk_lower = jerk_upper = None
-    if rate_allowance is not None:
+    jerk_lower = jerk_upper = jerk_ref = None
+    if rate_allowance is not None:  # a car whose steering rate is bounded: its path's curvature rate
         jerk_lower, jerk_upper = jerk_bounds(s, kappa, one, rate_allowance, config.jerk)
+        jerk_ref = reference_jerk(s, kappa, one) if smooth else None
     problem = LateralQPProblem(
         ds=float(s[1] - s[0]),
         d_lower=lower,
@@ -179,6 +191,7 @@ def lateral_qp(
         jerk_max=config.jerk,
         jerk_lower=jerk_lower,
         jerk_upper=jerk_upper,
+        jerk_ref=jerk_ref,
         d0=start.d,
         dd0=start.dd,
         ddd0=start.ddd,
@@ -311,6 +324,15 @@ def _attempt(
     bounds, d_ref = corridor.bounds, corridor.d_ref
     allowance = curvature_allowance(bounds.s, start, problem, config, braking_share)
     rate = curvature_rate_allowance(bounds.s, start, problem, config, braking_share)
+    if rate is not None:
+        # a car whose steering rate is bounded eases into the reference's bends where that keeps its
+        # footprint in the lane (the bounds are linearised at the candidate's heading, which a path
+        # cutting a bend leaves); else it follows the reference as the point model does
+        eased = lateral_qp(
+            solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate, smooth=True
+        )
+        if eased.info.converged and _in_lane(ref, problem, bounds.s, eased, corridor.surface):
+            return _Attempt(corridor, eased, lambda: True)
     qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate)
     if qp.info.converged and qp.first is None:  # OSQP solved it: nothing to choose from
         return _Attempt(corridor, qp, lambda: _in_lane(ref, problem, bounds.s, qp, corridor.surface))

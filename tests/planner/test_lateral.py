@@ -26,16 +26,26 @@ import numpy as np
 import pytest
 from scenario_roads import Road, arc_piece, straight_piece
 
+from planner.bounds import LateralBounds
 from planner.config import DEFAULT_CONFIG, LateralConfig
 from planner.ego import EgoFrenet
-from planner.lateral import curvature_allowance, curvature_rate_allowance, jerk_bounds, knots
+from planner.lateral import (
+    curvature_allowance,
+    curvature_rate_allowance,
+    jerk_bounds,
+    knots,
+    lateral_qp,
+    reference_jerk,
+)
 from planner.pipeline import plan
 from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import build_reference
 from planner.roads import straight, u_turn
+from planner.trajectory import frenet_path
 from planner.validation import ViolationKind, car_violations
 from planner_tools.io import problem_from_json
 from planner_tools.sim import shift_obstacle
+from solvers.lateral_qp import LateralQPSolver
 from solvers.result import SolverStatus
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "commonroad"
@@ -155,6 +165,37 @@ def test_the_jerk_bounds_even_out_the_references_curvature_and_always_allow_hold
     lower, upper = jerk_bounds(s, flat, one, np.full(6, np.inf), 0.5)
     np.testing.assert_allclose(lower, -0.5)
     np.testing.assert_allclose(upper, 0.5)
+
+
+def test_a_car_eases_into_a_bend_its_steering_cannot_take_at_once() -> None:
+    """A straight into a bend of radius 4 m (curvature steps from 0 to 0.25 1/m), ±1.5 m of room: with
+    ``smooth`` the QP's jerk term costs the path's own curvature rate, so the path cuts into the bend
+    gradually — its steepest change of curvature along the path well below the reference's — and
+    keeps its bounds; without it the path follows the reference's step."""
+    road = Road([straight_piece(20.0), arc_piece(4.0, 1.2), straight_piece(20.0)])
+    ref = build_reference(road.polyline(0.5))
+    s = np.arange(5.0, 35.0, 0.5)
+    bounds = LateralBounds(s, np.full(s.shape, -1.5), np.full(s.shape, 1.5), None)
+    start = EgoFrenet(s=5.0, d=0.0, dd=0.0, ddd=0.0, heading_error=0.0)
+    problem = PlanningProblem(road.polyline(0.5), Lane(1.5, 1.5), Ego(5.0, 0.0, 0.0, 3.0), vehicle=BMW)
+    allowance = np.full(s.shape, 0.9 * BMW.curvature_limit)
+    rate = curvature_rate_allowance(s, start, problem)
+    solver = LateralQPSolver()
+
+    def steepest(smooth: bool) -> tuple[float, np.ndarray]:
+        qp = lateral_qp(solver, bounds, np.zeros(s.shape), start, ref, allowance, DEFAULT_CONFIG.lateral,
+                        rate_allowance=rate, smooth=smooth)
+        assert qp.info.converged, qp.info
+        assert np.all(qp.d >= -1.5 - 1e-3) and np.all(qp.d <= 1.5 + 1e-3)
+        path = frenet_path(ref, s, qp.d, qp.dd, qp.ddd)
+        return float(np.max(np.abs(np.diff(path.curvature) / np.diff(path.sigma)))), qp.d
+
+    followed, d_followed = steepest(False)
+    eased, d_eased = steepest(True)
+    own = float(np.max(np.abs(reference_jerk(s, ref.kappa_at(s), np.ones(s.shape)))))
+    assert followed > 0.5 * own  # the step, about as the reference has it
+    assert eased < 0.5 * followed
+    assert np.abs(d_eased).max() > 0.1 > np.abs(d_followed).max()  # by cutting into the bend
 
 
 def test_zam_over_swerving_with_road_keeps_the_steering_rate() -> None:

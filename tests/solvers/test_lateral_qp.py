@@ -425,6 +425,7 @@ def _kwargs(n: int = 10) -> dict[str, Any]:
         ({"jerk_lower": np.full(10, -1.0)}, "jerk_lower"),
         ({"jerk_upper": np.r_[np.ones(8), np.nan]}, "jerk_upper"),
         ({"jerk_lower": np.full(9, 0.2), "jerk_upper": np.full(9, 0.1)}, "jerk_lower > jerk_upper"),
+        ({"jerk_ref": np.zeros(10)}, "jerk_ref"),
     ],
 )
 def test_misuse_raises_value_error(change: dict[str, Any], match: str) -> None:
@@ -470,6 +471,27 @@ def test_jerk_bounds_per_interval_hold_where_they_are_given() -> None:
     same = replace(base, jerk_lower=np.full(n - 1, -0.5), jerk_upper=np.full(n - 1, 0.5))
     np.testing.assert_array_equal(build_qp_matrices(same)[3], build_qp_matrices(base)[3])
     np.testing.assert_array_equal(build_qp_matrices(same)[4], build_qp_matrices(base)[4])
+
+
+def test_a_jerk_reference_pulls_the_jerk_term_towards_it() -> None:
+    """``jerk_ref`` changes only ``q`` (the set-up is reused) and the objective counts ``d‴ − r``."""
+    base = _lane_change(n=40)
+    ref = np.full(base.n - 1, 0.01)
+    pulled = replace(base, jerk_ref=ref)
+    P0, q0, A0, l0, _ = build_qp_matrices(base)
+    P1, q1, A1, l1, _ = build_qp_matrices(pulled)
+    assert (P0 != P1).nnz == 0 and (A0 != A1).nnz == 0
+    np.testing.assert_array_equal(l0, l1)
+    assert not np.array_equal(q0, q1)
+    result = LateralQPSolver().solve(pulled)
+    assert result.info.converged
+    x = result.x
+    value = 0.5 * x @ (P1 + sp.triu(P1, 1).T) @ x + q1 @ x
+    constant = base.weights.ref * np.sum(base.d_ref**2) + base.weights.jerk * np.sum(ref**2)
+    assert objective(pulled, result.d, result.dd, result.ddd) == pytest.approx(value + constant, rel=1e-6)
+    jerk = np.diff(result.ddd) / base.ds
+    free = np.diff(LateralQPSolver().solve(base).ddd) / base.ds
+    assert np.mean(jerk) > np.mean(free)  # pulled towards 0.01
 
 
 def test_infinite_bounds_and_jerk_are_allowed() -> None:
