@@ -24,15 +24,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.bounds import LateralBounds, lateral_bounds, pass_left
-from planner.collision import FrenetBoxes, box_hits, footprint_extent
+from planner.collision import FrenetBoxes, box_corners, box_hits, footprint_extent
 from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
 from planner.ego import EgoFrenet
+from planner.frenet import to_frenet
 from planner.kinematics import body_centre, lateral_curvature
 from planner.lane import lane_bounds
 from planner.problem import Lane, PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Path, frenet_path
-from planner.validation import leaves_lane
+from planner.validation import LANE_TOLERANCE, leaves_lane
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
 from solvers.result import SolveInfo
 
@@ -87,6 +88,63 @@ def curvature_allowance(
     )
 
 
+def curvature_rate_allowance(
+    s: FloatArray,
+    start: EgoFrenet,
+    problem: PlanningProblem,
+    config: PlannerConfig = DEFAULT_CONFIG,
+    braking_share: float = 0.5,
+) -> FloatArray | None:
+    """Largest rate of change of a car's path curvature ``|dκ/dσ|`` [1/m²] at knots ``s`` [m] that keeps
+    its steering rate within ``steering_rate_share · δ̇_max`` at the speed ``v`` it can at best have
+    slowed to there (braking at ``braking_share`` of its deceleration from ``v₀``, as
+    :func:`curvature_allowance`): ``|dδ/dt| = v · W/(1 + W²κ²) · |dκ/dσ| ≤ v · W · |dκ/dσ|``
+    (:mod:`planner.kinematics`), so ``|dκ/dσ| ≤ share · δ̇_max / (W v)`` (``inf`` where it can stand).
+    The speed profile slows for what the path asks (its steering-rate speed limit); this bound keeps
+    the path to what braking can make drivable — a path that turns faster than that right ahead of a
+    fast vehicle breaks the limit whatever the profile does. None for the point model or a car
+    without ``max_steering_rate``."""
+    v = problem.vehicle
+    if v.wheelbase is None or v.max_steering_rate is None:
+        return None
+    travelled = np.maximum(s - start.s, 0.0)
+    slowed = problem.ego.speed**2 - 2.0 * braking_share * v.max_deceleration * travelled
+    speed = np.sqrt(np.maximum(slowed, 0.0))
+    rate = config.speed.steering_rate_share * v.max_steering_rate / v.wheelbase
+    with np.errstate(divide="ignore"):
+        return np.asarray(np.where(speed > 0.0, rate / np.maximum(speed, 1e-300), np.inf))
+
+
+def reference_jerk(s: FloatArray, kappa: FloatArray, one: FloatArray) -> FloatArray:
+    """The jerk ``d‴`` [1/m²] per interval of knots ``s`` [m] that evens out the reference's own change
+    of curvature (``κ`` [1/m], ``1 − κd`` at the knots): ``−(1 − κd)² Δ(κ/(1 − κd)) / Δs``, the smaller
+    ``1 − κd`` of the interval's ends (see :func:`lateral_qp`)."""
+    stretch = np.minimum(one[:-1], one[1:])
+    return np.asarray(-(stretch**2) * np.diff(kappa / one) / np.diff(s))
+
+
+def jerk_bounds(
+    s: FloatArray, kappa: FloatArray, one: FloatArray, rate: FloatArray, jerk: float
+) -> tuple[FloatArray, FloatArray]:
+    """Bounds on ``d‴`` [1/m²] per interval of knots ``s`` [m] (reference curvature ``κ`` [1/m] and
+    ``1 − κd`` there) within ``±jerk`` that keep the path's ``|dκ_x/dσ|`` within ``rate`` [1/m²] at the
+    interval's first knot (see :func:`lateral_qp`): ``d‴ ∈ r ± rate·(1 − κd)³`` about the
+    :func:`reference_jerk` ``r``.
+    Where the reference's own change is steeper than that, the bounds still include 0 (following the
+    reference; the speed profile slows for it), so that holding ``d″`` stays feasible."""
+    stretch = np.minimum(one[:-1], one[1:])
+    own = reference_jerk(s, kappa, one)
+    with np.errstate(over="ignore", invalid="ignore"):
+        reach = rate[:-1] * stretch**3
+        lo = own - reach
+        hi = own + reach
+    lo = np.nan_to_num(lo, nan=-np.inf)  # no rate bound (a vehicle that may stand there): inf − inf
+    hi = np.nan_to_num(hi, nan=np.inf)
+    lower = np.clip(np.minimum(lo, 0.0), -jerk, 0.0)
+    upper = np.clip(np.maximum(hi, 0.0), 0.0, jerk)
+    return np.asarray(lower), np.asarray(upper)
+
+
 def lateral_qp(
     solver: LateralQPSolver,
     bounds: LateralBounds,
@@ -96,12 +154,22 @@ def lateral_qp(
     allowance: FloatArray,
     config: LateralConfig,
     time_limit_s: float | None = None,
+    rate_allowance: FloatArray | None = None,
+    smooth: bool = False,
 ) -> LateralQPResult:
-    """Piecewise-jerk QP on ``d(s)``; ``d″`` bounds linearised at ``d_ref`` keep ``|κ_path| ≤ allowance``.
+    """Piecewise-jerk QP on ``d(s)``; ``d″`` bounds linearised at ``d_ref`` keep ``|κ_path| ≤ allowance``,
+    the jerk ``|d‴| ≤ jerk`` and, when given, ``|dκ_path/dσ| ≤ rate_allowance`` (per knot).
 
     For small ``d′`` the path's curvature is ``κ_x ≈ (d″/(1 − κd) + κ)/(1 − κd)``, so
     ``|κ_x| ≤ c`` ⇔ ``(−c(1 − κd) − κ)(1 − κd) ≤ d″ ≤ (c(1 − κd) − κ)(1 − κd)``, with ``1 − κd`` taken
     at ``d_ref`` (at least ``min_stretch``). The bounds are tightened by ``qp_slack`` [m].
+
+    The rate (:func:`jerk_bounds`): over interval ``i``, ``Δκ_x ≈ Δd″/(1 − κd)² + Δ(κ/(1 − κd))`` and
+    ``Δσ ≈ (1 − κd) Δs``, both with the smaller ``1 − κd`` of its ends; so the path also evens out the
+    reference's own changes of curvature (a fitted polyline's ripple) where they alone would turn the
+    wheel too fast. With ``smooth`` (and a rate allowance) the jerk term costs the path's own curvature
+    rate rather than the offset's (:func:`reference_jerk`): the path eases into the reference's bends
+    (a car's steering cannot jump), cutting them within the bounds.
     """
     s = bounds.s
     lower = bounds.lower + config.qp_slack
@@ -111,12 +179,19 @@ def lateral_qp(
     with np.errstate(over="ignore"):  # a curvature limit near the largest float: ±inf, no bound
         ddd_upper = (allowance * one - kappa) * one
         ddd_lower = (-allowance * one - kappa) * one
+    jerk_lower = jerk_upper = jerk_ref = None
+    if rate_allowance is not None:  # a car whose steering rate is bounded: its path's curvature rate
+        jerk_lower, jerk_upper = jerk_bounds(s, kappa, one, rate_allowance, config.jerk)
+        jerk_ref = reference_jerk(s, kappa, one) if smooth else None
     problem = LateralQPProblem(
         ds=float(s[1] - s[0]),
         d_lower=lower,
         d_upper=upper,
         d_ref=np.clip(d_ref, lower, upper),
         jerk_max=config.jerk,
+        jerk_lower=jerk_lower,
+        jerk_upper=jerk_upper,
+        jerk_ref=jerk_ref,
         d0=start.d,
         dd0=start.dd,
         ddd0=start.ddd,
@@ -248,7 +323,17 @@ def _attempt(
     (and OSQP's own iterates beside the second backend's), the first in the lane, then solved."""
     bounds, d_ref = corridor.bounds, corridor.d_ref
     allowance = curvature_allowance(bounds.s, start, problem, config, braking_share)
-    qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
+    rate = curvature_rate_allowance(bounds.s, start, problem, config, braking_share)
+    if rate is not None:
+        # a car whose steering rate is bounded eases into the reference's bends where that keeps its
+        # footprint in the lane (the bounds are linearised at the candidate's heading, which a path
+        # cutting a bend leaves); else it follows the reference as the point model does
+        eased = lateral_qp(
+            solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate, smooth=True
+        )
+        if eased.info.converged and _in_lane(ref, problem, bounds.s, eased, corridor.surface):
+            return _Attempt(corridor, eased, lambda: True)
+    qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate)
     if qp.info.converged and qp.first is None:  # OSQP solved it: nothing to choose from
         return _Attempt(corridor, qp, lambda: _in_lane(ref, problem, bounds.s, qp, corridor.surface))
     # Where the second backend answered, OSQP's own iterate comes along: an exact path may press a bound
@@ -260,7 +345,7 @@ def _attempt(
         # too fast for the road, or no path in the lane: try the vehicle's own curvature limit
         limit = config.lateral.retry_curvature_share * problem.vehicle.curvature_limit
         allowance = np.full(bounds.s.shape, limit)
-        retry = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left())
+        retry = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate)
         more = [r for r in (retry, retry.first) if r is not None and r.info.usable]
         inside += [_in_lane(ref, problem, bounds.s, r, corridor.surface) for r in more]
         options = options + more
@@ -281,6 +366,22 @@ def _in_lane(
     path = frenet_path(ref, s, qp.d, qp.dd, qp.ddd)
     x, y = body_centre(path.x, path.y, path.heading, problem.vehicle)
     return not bool(np.any(leaves_lane(ref, problem, x, y, path.heading, surface)))
+
+
+def _leaves_from(
+    ref: ReferenceLine, problem: PlanningProblem, path: Path, surface: Lane, reach: float
+) -> int | None:
+    """The first knot of ``path`` before ``reach`` [m] (beyond it the vehicle never gets: the lane's end)
+    where the footprint leaves ``surface`` (at least 1), or None; None too where it starts outside (a
+    vehicle coming back into its lane from the road)."""
+    x, y = body_centre(path.x, path.y, path.heading, problem.vehicle)
+    first = box_corners(x[:1], y[:1], path.heading[:1], problem.vehicle.length, problem.vehicle.width)
+    fr = to_frenet(ref, first.reshape(-1, 2))
+    left, right = surface.widths(ref, fr.s)
+    if float(np.max(np.maximum(fr.d - left, -right - fr.d))) > LANE_TOLERANCE:
+        return None
+    out = np.flatnonzero(leaves_lane(ref, problem, x, y, path.heading, surface) & (path.s < reach))
+    return None if out.size == 0 else max(int(out[0]), 1)
 
 
 def _sides(boxes: FrenetBoxes, left_of: NDArray[np.bool_], sides: Mapping[str, bool]) -> NDArray[np.bool_]:
@@ -305,6 +406,8 @@ class LateralPlan:
         held: whether ``path`` holds the ego's offset because the QP left no room to steer.
         obstacle_on_hold: whether an obstacle on the held offset is the block.
         waiting: whether the block is a line to wait at before the lane's own (:meth:`stopping_at`).
+        leaves: whether the block is where the QP's path leaves the lane although its bounds let it
+            through (a bend too tight for the footprint, where the bounds' linearisation fails).
     """
 
     path: Path | None
@@ -315,6 +418,7 @@ class LateralPlan:
     held: bool = False
     obstacle_on_hold: bool = False
     waiting: bool = False
+    leaves: bool = False
 
     @property
     def knots(self) -> int:
@@ -324,7 +428,7 @@ class LateralPlan:
     @property
     def block_at(self) -> float:
         """Where a block stops the path [m] (the bounds end before the bounds' own block)."""
-        at_knot = self.obstacle_on_hold or self.waiting
+        at_knot = self.obstacle_on_hold or self.waiting or self.leaves
         return float(self.bounds.s[self.blocked]) if at_knot else float(self.bounds.s[-1])
 
     @property
@@ -382,6 +486,13 @@ def lateral_stage(
     held = bounds.blocked is not None and not (qp.info.converged or attempt.in_lane)
     if qp.info.usable and not held:
         path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
+        if bounds.blocked is None and not attempt.in_lane:
+            # the bounds let the footprint through where the path leaves the lane: that is the block
+            # (stop before it; the lane decision may borrow the road round it)
+            reach = ref.length - problem.vehicle.front_extent - config.stop_gap
+            out = _leaves_from(ref, problem, path, attempt.corridor.surface, reach)
+            if out is not None:
+                return LateralPlan(path, qp.info, bounds, out, False, leaves=True)
         return LateralPlan(path, qp.info, bounds, bounds.blocked, road_end)
     if bounds.blocked is None:
         return LateralPlan(None, qp.info, bounds, None, road_end)

@@ -48,6 +48,8 @@ def folds_back(ref: ReferenceLine, xy: ArrayLike) -> bool:
 
 #: tolerances of the trajectory checks
 _GEOMETRY_TOL = 1e-3  # [m]
+#: how far a footprint corner may be outside the lane before the lane check finds it out [m]
+LANE_TOLERANCE = _GEOMETRY_TOL
 _RATE_TOL = 1e-3  # relative, on limits
 #: the first point may be this far from the ego [m]
 _START_TOL = 0.05

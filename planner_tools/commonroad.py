@@ -986,25 +986,33 @@ def vehicle_type_car(vehicle_type: int = VEHICLE_TYPE) -> dict[str, float]:
     """The car of a CommonRoad vehicle type as a request's vehicle fields (commonroad-vehicle-models'
     parameters, which the feasibility checker uses): footprint ``l × w``, wheelbase ``a + b``, the rear
     axle ``b`` behind the centre (CommonRoad's position; ``a``, ``b``: centre to the front and rear
-    axles), the steering angle and rate limits. Type 2, the BMW 320i: 4.508 × 1.61 m, wheelbase
-    2.579 m, rear axle 1.423 m behind the centre, ±1.066 rad, ±0.4 rad/s."""
+    axles), the steering angle and rate limits, and the curvature limit they give
+    (``tan δ_max / wheelbase``: the car's own, not a point model's). Type 2, the BMW 320i:
+    4.508 × 1.61 m, wheelbase 2.579 m, rear axle 1.423 m behind the centre, ±1.066 rad (0.70 1/m),
+    ±0.4 rad/s."""
     _require_commonroad()
     from vehiclemodels.vehicle_parameters import setup_vehicle_parameters
 
     p = setup_vehicle_parameters(vehicle_type)
+    wheelbase = float(p.a + p.b)
     return {
         "length": float(p.l),
         "width": float(p.w),
-        "wheelbase": float(p.a + p.b),
+        "wheelbase": wheelbase,
         "rear_axle_offset": float(p.b),
         "max_steering_angle": float(p.steering.max),
         "max_steering_rate": float(p.steering.v_max),
+        "max_curvature": float(np.tan(p.steering.max)) / wheelbase,
     }
 
 
 def point_vehicle(vehicle: dict[str, Any]) -> dict[str, Any]:
-    """A request's vehicle without its car's fields: the same footprint and limits, the point model."""
-    return {k: v for k, v in vehicle.items() if k not in CAR_FIELDS}
+    """A request's vehicle without its car's fields: the same footprint and limits, the point model (a
+    car's curvature limit, its steering's, made the shared requests' point model's again)."""
+    point = {k: v for k, v in vehicle.items() if k not in CAR_FIELDS}
+    if vehicle.get("wheelbase") is not None:
+        point["max_curvature"] = VEHICLE["max_curvature"]
+    return point
 
 
 def car_vehicle(vehicle: dict[str, Any], vehicle_type: int = VEHICLE_TYPE) -> dict[str, Any]:

@@ -15,12 +15,12 @@ the ``end_target`` one only when the problem gives ``end_d``)::
          + w_offset Σ_{i=0}^{n−1} d_i²                      stay near the reference line
          + w_slope  Σ_{i=0}^{n−1} d′_i²
          + w_curv   Σ_{i=0}^{n−1} d″_i²
-         + w_jerk   Σ_{i=0}^{n−2} ((d″_{i+1} − d″_i)/Δs)²
+         + w_jerk   Σ_{i=0}^{n−2} ((d″_{i+1} − d″_i)/Δs − r_i)²   (r = jerk_ref, default 0)
          + w_end_target (d_{n−1} − end_d)² + w_end_slope d′_{n−1}² + w_end_curv d″_{n−1}²
 
 Constraints, for ``i = 0 … n−2`` (exact integration of a constant jerk over ``[s_i, s_{i+1}]``)::
 
-    −Δs·jerk_max ≤ d″_{i+1} − d″_i ≤ Δs·jerk_max
+    Δs·jerk_lower,i ≤ d″_{i+1} − d″_i ≤ Δs·jerk_upper,i      (default ∓jerk_max)
     d′_{i+1} = d′_i + Δs (d″_i + d″_{i+1}) / 2
     d_{i+1}  = d_i + Δs d′_i + Δs²/3 d″_i + Δs²/6 d″_{i+1}
 
@@ -37,7 +37,7 @@ In OSQP's form ``min ½ xᵀPx + qᵀx  s.t.  l ≤ Ax ≤ u`` with ``J(x) = ½ 
     P = 2·blockdiag( (w_ref + w_offset) I + w_end_target e eᵀ,
                      w_slope I + w_end_slope e eᵀ,
                      w_curv I + w_end_curv e eᵀ + (w_jerk/Δs²) DᵀD )       (upper triangle, CSC)
-    q = −2·[ w_ref d_ref + w_end_target end_d e ;  0 ;  0 ]
+    q = −2·[ w_ref d_ref + w_end_target end_d e ;  0 ;  (w_jerk/Δs) Dᵀr ]
     A = [ I_{3n} ; jerk rows ; slope-integration rows ; offset-integration rows ]   ((6n − 3) × 3n)
 
 with ``e`` the last unit vector and ``D`` the ``(n−1) × n`` forward difference. ``P`` and ``A`` depend
@@ -121,6 +121,10 @@ class LateralQPProblem:
         d_lower, d_upper: bounds on the offset ``d`` [m] per knot (knot 0 is pinned to ``d0`` instead).
         d_ref: target offset per knot [m] (e.g. a candidate profile).
         jerk_max: bound on ``|d‴|`` [1/m²], > 0.
+        jerk_lower, jerk_upper: optional bounds on ``d‴`` [1/m²] per interval (``n − 1`` values, interval
+            ``i`` from knot ``i`` to ``i + 1``), in place of ``∓jerk_max`` (``jerk_lower ≤ jerk_upper``).
+        jerk_ref: optional jerk per interval [1/m²] the jerk term pulls ``d‴`` towards (default 0):
+            e.g. the one that evens out the reference's own changes of curvature.
         d0, dd0, ddd0: initial state ``d`` [m], ``d′`` [-], ``d″`` [1/m] at knot 0 (equality constraints).
         dd_lower, dd_upper: optional bounds on ``d′ = dd/ds`` [-] per knot.
         ddd_lower, ddd_upper: optional bounds on ``d″`` [1/m] per knot.
@@ -140,6 +144,9 @@ class LateralQPProblem:
     dd_upper: FloatArray | None = None
     ddd_lower: FloatArray | None = None
     ddd_upper: FloatArray | None = None
+    jerk_lower: FloatArray | None = None
+    jerk_upper: FloatArray | None = None
+    jerk_ref: FloatArray | None = None
     weights: LateralWeights = field(default_factory=LateralWeights)
     end_d: float | None = None
 
@@ -176,6 +183,14 @@ class LateralQPProblem:
                 put(upper_name, upper)
             if lower is not None and upper is not None:
                 check_ordered(lower_name, lower, upper_name, upper)
+        if self.jerk_lower is not None:
+            put("jerk_lower", float_array("jerk_lower", self.jerk_lower, size=n - 1, allow_neginf=True))
+        if self.jerk_upper is not None:
+            put("jerk_upper", float_array("jerk_upper", self.jerk_upper, size=n - 1, allow_posinf=True))
+        if self.jerk_lower is not None and self.jerk_upper is not None:
+            check_ordered("jerk_lower", self.jerk_lower, "jerk_upper", self.jerk_upper)
+        if self.jerk_ref is not None:
+            put("jerk_ref", float_array("jerk_ref", self.jerk_ref, size=n - 1))
 
         for name in ("d0", "dd0", "ddd0"):
             put(name, scalar(name, getattr(self, name)))
@@ -203,6 +218,13 @@ class LateralQPProblem:
             lower[2 * n :] = self.ddd_lower
         if self.ddd_upper is not None:
             upper[2 * n :] = self.ddd_upper
+        return lower, upper
+
+    def jerk_bounds(self) -> tuple[FloatArray, FloatArray]:
+        """Lower and upper bounds on ``d‴`` [1/m²] per interval (``∓jerk_max`` where not given)."""
+        m1 = self.n - 1
+        lower = np.full(m1, -self.jerk_max) if self.jerk_lower is None else np.asarray(self.jerk_lower)
+        upper = np.full(m1, self.jerk_max) if self.jerk_upper is None else np.asarray(self.jerk_upper)
         return lower, upper
 
 
@@ -303,12 +325,16 @@ def qp_vectors(problem: LateralQPProblem) -> tuple[FloatArray, FloatArray, Float
     q[:n] = -2.0 * w.ref * problem.d_ref
     if problem.end_d is not None:
         q[n - 1] -= 2.0 * w.end_target * problem.end_d
+    if problem.jerk_ref is not None:  # −2 (w_jerk/Δs) Σ r_i (d″_{i+1} − d″_i)
+        pull = 2.0 * w.jerk / problem.ds * problem.jerk_ref
+        q[2 * n : 3 * n - 1] += pull
+        q[2 * n + 1 :] -= pull
     box_l, box_u = problem._bounds()
     box_l[[0, n, 2 * n]] = box_u[[0, n, 2 * n]] = (problem.d0, problem.dd0, problem.ddd0)
-    jerk_step = problem.ds * problem.jerk_max  # may be +inf
+    jerk_lower, jerk_upper = problem.jerk_bounds()  # may be ∓inf
     m1 = n - 1
-    l = np.concatenate([box_l, np.full(m1, -jerk_step), np.zeros(2 * m1)])  # noqa: E741
-    u = np.concatenate([box_u, np.full(m1, jerk_step), np.zeros(2 * m1)])
+    l = np.concatenate([box_l, problem.ds * jerk_lower, np.zeros(2 * m1)])  # noqa: E741
+    u = np.concatenate([box_u, problem.ds * jerk_upper, np.zeros(2 * m1)])
     return q, l, u
 
 
@@ -321,7 +347,7 @@ def build_qp_matrices(
     upper triangle's transpose for a full matrix. ``l``/``u`` may hold ±∞. Rows of ``A``: ``3n`` box rows
     (identity; knot 0 pinned to the initial state), then ``n−1`` jerk rows, ``n−1`` slope-integration rows
     and ``n−1`` offset-integration rows. The constant dropped from ``J`` is
-    ``w_ref Σ d_ref,i² + w_end_target end_d²``.
+    ``w_ref Σ d_ref,i² + w_end_target end_d² + w_jerk Σ r_i²``.
     """
     P, A = qp_matrices(problem.n, problem.ds, problem.weights, problem.end_d is not None)
     q, l, u = qp_vectors(problem)  # noqa: E741
@@ -332,6 +358,8 @@ def objective(problem: LateralQPProblem, d: FloatArray, dd: FloatArray, ddd: Flo
     """The cost ``J`` of the module docstring (constant included) of a path ``(d, d′, d″)``."""
     w = problem.weights
     jerk = np.diff(ddd) / problem.ds
+    if problem.jerk_ref is not None:
+        jerk = jerk - problem.jerk_ref
     value = (
         w.ref * np.sum((d - problem.d_ref) ** 2)
         + w.offset * np.sum(d**2)
@@ -349,9 +377,10 @@ def objective(problem: LateralQPProblem, d: FloatArray, dd: FloatArray, ddd: Flo
 def integrate_profile(problem: LateralQPProblem, ddd: FloatArray) -> FloatArray:
     """``x = [d, d′, d″]`` integrated exactly from the initial state with d″ [1/m] per knot (the
     equality rows of the QP hold; the box bounds need not). ``ddd[0]`` is replaced by ``ddd0`` and each
-    jerk ``(d″_{i+1} − d″_i)/Δs`` is clipped to ``±jerk_max``."""
+    jerk ``(d″_{i+1} − d″_i)/Δs`` is clipped to its bounds (``±jerk_max`` unless given)."""
     ds = problem.ds
-    step = np.clip(np.diff(np.asarray(ddd, dtype=float)), -ds * problem.jerk_max, ds * problem.jerk_max)
+    jerk_lower, jerk_upper = problem.jerk_bounds()
+    step = np.clip(np.diff(np.asarray(ddd, dtype=float)), ds * jerk_lower, ds * jerk_upper)
     curv = problem.ddd0 + np.concatenate(([0.0], np.cumsum(step)))
     slope = problem.dd0 + np.concatenate(([0.0], np.cumsum(0.5 * ds * (curv[:-1] + curv[1:]))))
     rise = ds * slope[:-1] + ds**2 / 3.0 * curv[:-1] + ds**2 / 6.0 * curv[1:]

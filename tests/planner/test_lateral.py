@@ -26,18 +26,30 @@ import numpy as np
 import pytest
 from scenario_roads import Road, arc_piece, straight_piece
 
+from planner.bounds import LateralBounds
 from planner.config import DEFAULT_CONFIG, LateralConfig
 from planner.ego import EgoFrenet
-from planner.lateral import curvature_allowance, knots
+from planner.lateral import (
+    curvature_allowance,
+    curvature_rate_allowance,
+    jerk_bounds,
+    knots,
+    lateral_qp,
+    reference_jerk,
+)
 from planner.pipeline import plan
 from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import build_reference
 from planner.roads import straight, u_turn
+from planner.trajectory import frenet_path
+from planner.validation import ViolationKind, car_violations
 from planner_tools.io import problem_from_json
 from planner_tools.sim import shift_obstacle
+from solvers.lateral_qp import LateralQPSolver
 from solvers.result import SolverStatus
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "commonroad"
+ROAD_DATA = DATA.parent / "commonroad-road"
 CONVERGED = (SolverStatus.SOLVED, SolverStatus.SOLVED_INACCURATE)
 #: the vehicle of the CommonRoad requests
 CAR = Vehicle(
@@ -97,6 +109,130 @@ def test_the_curvature_bound_is_the_vehicles_within_what_the_speed_allows() -> N
         allowance, np.minimum(0.9 * v.max_curvature, 0.9 * v.max_lateral_acceleration / v_sq)
     )
     assert allowance[0] < allowance[-1]  # slower farther on: tighter curves
+
+
+#: CommonRoad's vehicle type 2 (BMW 320i) as the closed loops drive it
+BMW = replace(
+    CAR,
+    max_curvature=float(np.tan(1.066)) / 2.5789128,
+    wheelbase=2.5789128,
+    rear_axle_offset=1.4227170936,
+    max_steering_angle=1.066,
+    max_steering_rate=0.4,
+)
+
+
+def test_the_curvature_rate_bound_keeps_the_steering_rate_at_the_least_speed_braking_leaves() -> None:
+    line = np.array([[0.0, 0.0], [200.0, 0.0]])
+    problem = PlanningProblem(line, Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, 20.0), vehicle=BMW)
+    s = np.linspace(10.0, 60.0, 11)
+    rate = curvature_rate_allowance(s, START, problem, braking_share=0.5)
+    assert rate is not None
+    # |dδ/dt| ≤ v·W·|dκ/dσ| ≤ 0.9·0.4 rad/s at v² = 400 − 8·travelled (half of 8 m/s²)
+    speed = np.sqrt(np.maximum(400.0 - 8.0 * (s - 10.0), 0.0))
+    with np.errstate(divide="ignore"):
+        expected = np.where(speed > 0.0, 0.36 / (BMW.wheelbase * np.maximum(speed, 1e-300)), np.inf)
+    np.testing.assert_allclose(rate, expected)
+    assert rate[0] == pytest.approx(0.36 / (2.5789128 * 20.0))
+    assert np.isposinf(rate[-1])  # it can stand there: no bound
+    assert np.all(np.diff(rate) >= 0.0)  # slower farther on: the wheel may turn faster per metre
+    # the point model and a car without a steering-rate limit have none
+    assert curvature_rate_allowance(s, START, replace(problem, vehicle=CAR)) is None
+    free = replace(BMW, max_steering_rate=None)
+    assert curvature_rate_allowance(s, START, replace(problem, vehicle=free)) is None
+
+
+def test_the_jerk_bounds_even_out_the_references_curvature_and_always_allow_holding() -> None:
+    s = np.arange(6) * 0.5
+    one = np.ones(6)
+    flat = np.zeros(6)
+    rate = np.full(6, 0.02)
+    lower, upper = jerk_bounds(s, flat, one, rate, 0.5)
+    np.testing.assert_allclose(lower, -0.02)
+    np.testing.assert_allclose(upper, 0.02)
+    # a ripple of the reference's curvature (+0.004 1/m over one interval): the path's d‴ must undo it
+    # within the rate: d‴ ∈ −0.008 ± 0.02 there
+    ripple = np.array([0.0, 0.0, 0.004, 0.004, 0.004, 0.004])
+    lower, upper = jerk_bounds(s, ripple, one, rate, 0.5)
+    assert (lower[1], upper[1]) == pytest.approx((-0.028, 0.012))
+    # a step steeper than the rate allows (+0.1 1/m): d‴ ∈ −0.2 ± 0.02, widened to keep 0 (following the
+    # reference is what the speed profile slows for), and within the comfort jerk
+    step = np.array([0.0, 0.0, 0.1, 0.1, 0.1, 0.1])
+    lower, upper = jerk_bounds(s, step, one, rate, 0.5)
+    assert (lower[1], upper[1]) == pytest.approx((-0.22, 0.0))
+    assert np.all(lower <= 0.0) and np.all(upper >= 0.0) and np.all(lower >= -0.5)
+    # where the vehicle may stand there is no rate bound, only the comfort jerk
+    lower, upper = jerk_bounds(s, flat, one, np.full(6, np.inf), 0.5)
+    np.testing.assert_allclose(lower, -0.5)
+    np.testing.assert_allclose(upper, 0.5)
+
+
+def test_a_car_eases_into_a_bend_its_steering_cannot_take_at_once() -> None:
+    """A straight into a bend of radius 4 m (curvature steps from 0 to 0.25 1/m), ±1.5 m of room: with
+    ``smooth`` the QP's jerk term costs the path's own curvature rate, so the path cuts into the bend
+    gradually — its steepest change of curvature along the path well below the reference's — and
+    keeps its bounds; without it the path follows the reference's step."""
+    road = Road([straight_piece(20.0), arc_piece(4.0, 1.2), straight_piece(20.0)])
+    ref = build_reference(road.polyline(0.5))
+    s = np.arange(5.0, 35.0, 0.5)
+    bounds = LateralBounds(s, np.full(s.shape, -1.5), np.full(s.shape, 1.5), None)
+    start = EgoFrenet(s=5.0, d=0.0, dd=0.0, ddd=0.0, heading_error=0.0)
+    problem = PlanningProblem(road.polyline(0.5), Lane(1.5, 1.5), Ego(5.0, 0.0, 0.0, 3.0), vehicle=BMW)
+    allowance = np.full(s.shape, 0.9 * BMW.curvature_limit)
+    rate = curvature_rate_allowance(s, start, problem)
+    solver = LateralQPSolver()
+
+    def steepest(smooth: bool) -> tuple[float, np.ndarray]:
+        qp = lateral_qp(solver, bounds, np.zeros(s.shape), start, ref, allowance, DEFAULT_CONFIG.lateral,
+                        rate_allowance=rate, smooth=smooth)
+        assert qp.info.converged, qp.info
+        assert np.all(qp.d >= -1.5 - 1e-3) and np.all(qp.d <= 1.5 + 1e-3)
+        path = frenet_path(ref, s, qp.d, qp.dd, qp.ddd)
+        return float(np.max(np.abs(np.diff(path.curvature) / np.diff(path.sigma)))), qp.d
+
+    followed, d_followed = steepest(False)
+    eased, d_eased = steepest(True)
+    own = float(np.max(np.abs(reference_jerk(s, ref.kappa_at(s), np.ones(s.shape)))))
+    assert followed > 0.5 * own  # the step, about as the reference has it
+    assert eased < 0.5 * followed
+    assert np.abs(d_eased).max() > 0.1 > np.abs(d_followed).max()  # by cutting into the bend
+
+
+def test_zam_over_swerving_with_road_keeps_the_steering_rate() -> None:
+    """ZAM_Over-1_1 with the whole road, CommonRoad's car, the closed loop's state at 0.1 s: swerving
+    round the lane-wide obstacle 1402 from 19.9 m/s, the path reversed its curvature at 9 m/s where
+    the steering could not follow (0.403 rad/s > 0.4), and the fallback, the vehicle's limits first,
+    braked straight into the obstacle."""
+    problem = problem_from_json(json.loads((ROAD_DATA / "ZAM_Over-1_1.json").read_text()))
+    ego = Ego(
+        x=31.988632798155468,
+        y=-1.0612730430670965,
+        heading=0.04415847561853791,
+        speed=19.861896523558578,
+        acceleration=-2.7248148265678727,
+        curvature=0.008986764279133738,
+    )
+    problem = replace(problem, ego=ego, vehicle=BMW, options=replace(problem.options, speed_limit=23.0))
+    result = plan(problem)
+    assert result.status != "error"
+    assert result.diagnostics.decision.borrows
+    kinds = {v.kind for v in car_violations(problem.vehicle, result.trajectory)}
+    assert ViolationKind.STEERING_RATE not in kinds
+    assert not result.violations, result.message
+
+
+def test_aarschot_where_the_path_leaves_the_lane_in_the_hairpin_is_the_block() -> None:
+    """BEL_Aarschot-3_1's first cycle, CommonRoad's car (turning to 0.70 1/m): the lateral bounds let
+    the footprint through the 2.4 m hairpin, but the QP's path (bounds linearised at the candidate's
+    heading) leaves the lane there, and every cycle was a fallback. Where it leaves is the block: the
+    plan stops before it (and, with a road, the lane decision may borrow it)."""
+    problem = problem_from_json(json.loads((DATA / "BEL_Aarschot-3_1_T-1.json").read_text()))
+    problem = replace(problem, vehicle=BMW)
+    result = plan(problem)
+    assert result.status == "stopped", result.message
+    assert not result.violations
+    assert result.diagnostics.decision.reason.block is not None  # what blocks: the bend
+    assert result.diagnostics.decision.reason.block.value == "bend"
 
 
 @pytest.mark.parametrize("curved", [False, True], ids=["straight", "left-curve"])

@@ -368,7 +368,11 @@ def test_the_xml_conversion_is_commonroads_car() -> None:
     assert vehicle["rear_axle_offset"] == pytest.approx(1.422, abs=1e-3)
     assert (vehicle["length"], vehicle["width"]) == (4.508, 1.61)
     assert (vehicle["max_steering_angle"], vehicle["max_steering_rate"]) == (1.066, 0.4)
+    # the car turns as its steering allows (tan δ / W), not as the point model's 0.3 1/m
+    assert vehicle["max_curvature"] == pytest.approx(np.tan(1.066) / vehicle["wheelbase"])
+    assert problem_from_json(conv.request).vehicle.curvature_limit == pytest.approx(0.702, abs=1e-3)
     assert cr.point_vehicle(vehicle) == cr.VEHICLE
+    assert cr.car_vehicle(cr.VEHICLE) == vehicle
     assert (conv.info["dt"], conv.info["initial_time_step"]) == (0.1, 0)
     problem = problem_from_json(conv.request)
     assert problem.vehicle.is_car

@@ -64,7 +64,13 @@ def _violations(problem: LateralQPProblem, result: LateralQPResult) -> dict[str,
         "d_bounds": box(d, problem.d_lower, problem.d_upper),
         "dd_bounds": box(dd, problem.dd_lower, problem.dd_upper),
         "ddd_bounds": box(ddd, problem.ddd_lower, problem.ddd_upper),
-        "jerk": float(max(np.max(np.abs(np.diff(ddd)) - ds * problem.jerk_max), 0.0)),
+        "jerk": float(
+            max(
+                np.max(ds * problem.jerk_bounds()[0] - np.diff(ddd)),
+                np.max(np.diff(ddd) - ds * problem.jerk_bounds()[1]),
+                0.0,
+            )
+        ),
         "slope_integration": float(np.max(np.abs(dd[1:] - dd[:-1] - ds * (ddd[:-1] + ddd[1:]) / 2))),
         "offset_integration": float(
             np.max(np.abs(d[1:] - d[:-1] - ds * dd[:-1] - ds**2 / 3 * ddd[:-1] - ds**2 / 6 * ddd[1:]))
@@ -416,6 +422,10 @@ def _kwargs(n: int = 10) -> dict[str, Any]:
         ({"dd0": np.inf}, "dd0"),
         ({"end_d": np.nan}, "end_d"),
         ({"d_ref": ["a"] * 10}, "d_ref"),
+        ({"jerk_lower": np.full(10, -1.0)}, "jerk_lower"),
+        ({"jerk_upper": np.r_[np.ones(8), np.nan]}, "jerk_upper"),
+        ({"jerk_lower": np.full(9, 0.2), "jerk_upper": np.full(9, 0.1)}, "jerk_lower > jerk_upper"),
+        ({"jerk_ref": np.zeros(10)}, "jerk_ref"),
     ],
 )
 def test_misuse_raises_value_error(change: dict[str, Any], match: str) -> None:
@@ -438,6 +448,50 @@ def test_bad_weights_and_limits_raise() -> None:
         solver.solve(problem, time_limit_s=-1.0)
     with pytest.raises(ValueError, match="problem"):
         solver.solve(_kwargs())  # type: ignore[arg-type]
+
+
+def test_jerk_bounds_per_interval_hold_where_they_are_given() -> None:
+    """A lane change whose jerk is bounded tighter over its first half (as a car's steering rate bounds
+    it at speed) and forced off 0 further on (a reference's ripple to undo): the solution keeps each
+    interval's bounds where the free solution breaks them."""
+    base = _lane_change()
+    n = base.n
+    lower, upper = np.full(n - 1, -0.5), np.full(n - 1, 0.5)
+    lower[: n // 2], upper[: n // 2] = -5e-4, 5e-4
+    lower[150:160], upper[150:160] = 1e-3, 2e-3
+    problem = replace(base, jerk_lower=lower, jerk_upper=upper)
+    result = LateralQPSolver().solve(problem)
+    assert result.info.converged, result.info
+    _assert_feasible(problem, result, tol=EPS)
+    jerk = np.diff(result.ddd) / problem.ds
+    assert np.all(jerk >= lower - 1e-5) and np.all(jerk <= upper + 1e-5)
+    free = np.diff(LateralQPSolver().solve(base).ddd) / base.ds
+    assert np.abs(free[: n // 2]).max() > 5e-4 and free[150:160].min() < 1e-3  # the bounds bind
+    # the same bounds as ±jerk_max give the same problem as jerk_max itself
+    same = replace(base, jerk_lower=np.full(n - 1, -0.5), jerk_upper=np.full(n - 1, 0.5))
+    np.testing.assert_array_equal(build_qp_matrices(same)[3], build_qp_matrices(base)[3])
+    np.testing.assert_array_equal(build_qp_matrices(same)[4], build_qp_matrices(base)[4])
+
+
+def test_a_jerk_reference_pulls_the_jerk_term_towards_it() -> None:
+    """``jerk_ref`` changes only ``q`` (the set-up is reused) and the objective counts ``d‴ − r``."""
+    base = _lane_change(n=40)
+    ref = np.full(base.n - 1, 0.01)
+    pulled = replace(base, jerk_ref=ref)
+    P0, q0, A0, l0, _ = build_qp_matrices(base)
+    P1, q1, A1, l1, _ = build_qp_matrices(pulled)
+    assert (P0 != P1).nnz == 0 and (A0 != A1).nnz == 0
+    np.testing.assert_array_equal(l0, l1)
+    assert not np.array_equal(q0, q1)
+    result = LateralQPSolver().solve(pulled)
+    assert result.info.converged
+    x = result.x
+    value = 0.5 * x @ (P1 + sp.triu(P1, 1).T) @ x + q1 @ x
+    constant = base.weights.ref * np.sum(base.d_ref**2) + base.weights.jerk * np.sum(ref**2)
+    assert objective(pulled, result.d, result.dd, result.ddd) == pytest.approx(value + constant, rel=1e-6)
+    jerk = np.diff(result.ddd) / base.ds
+    free = np.diff(LateralQPSolver().solve(base).ddd) / base.ds
+    assert np.mean(jerk) > np.mean(free)  # pulled towards 0.01
 
 
 def test_infinite_bounds_and_jerk_are_allowed() -> None:
