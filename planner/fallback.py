@@ -1,8 +1,11 @@
 """The fallback: when a stage fails or its trajectory breaks a check, brake safely along the best path known.
 
 Full braking within the emergency jerk is tried along the optimised path, then along the chosen
-candidate, then straight on at the ego's offset (no steering while it stops); the first braking
-trajectory that passes every check is taken, else the least severe (:func:`severity`).
+candidate, then at the ego's offset from the reference; the first braking trajectory that passes every
+check is taken. Where the least severe of them still breaks the vehicle's limits (a start faster than
+any bend ahead allows) or its numbers disagree, braking straight on along the ego's heading
+(:func:`straight_on`: no curvature, so no lateral acceleration and no steering) is tried too. Else the
+least severe is taken (:func:`severity`).
 
 Braking into a vehicle coming from behind is never better than driving on: when a braking trajectory is hit
 from behind (a :attr:`~planner.validation.ViolationKind.HITS_MOVING_OBSTACLE` of one of
@@ -26,14 +29,16 @@ from __future__ import annotations
 from collections.abc import Callable, Collection
 from dataclasses import dataclass
 
+import numpy as np
 from shapely.geometry.base import BaseGeometry
 
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.ego import EgoFrenet
 from planner.follower import UnescapedFollower, first_hit_from_behind, from_behind, unescaped
+from planner.frenet import to_frenet
 from planner.lateral import held_offset, knots
 from planner.problem import PlanningProblem
-from planner.reference import ReferenceLine
+from planner.reference import FloatArray, ReferenceLine
 from planner.speed import Profile, ProfileKind, braking, escape, keep_speed, profile_grid
 from planner.st_bounds import followers, moving_obstacles
 from planner.trajectory import Path, Trajectory
@@ -116,6 +121,12 @@ def fallback(
             return Fallback(tried[-1].trajectory, (), reason, ProfileKind.BRAKING)
     rear = {ob.id for ob in followers(ref, moving_obstacles(problem), start.s)}
     best = min(tried, key=lambda o: severity(o.violations, rear))
+    if any(v.kind in LIMITS or v.kind in CONSISTENCY for v in best.violations):
+        line = straight_on(ref, problem, config)
+        tried.append(weigh("braking", braking(line, problem, steps, dt, config.speed), line))
+        if not tried[-1].violations:
+            return Fallback(tried[-1].trajectory, (), reason, ProfileKind.BRAKING)
+        best = min(tried, key=lambda o: severity(o.violations, rear))
     message = f"{reason}; the braking trajectory still breaks: {best.violations[0]}"
     hit_from_behind = next((h for o in tried if (h := first_hit_from_behind(o.violations, rear))), None)
     if hit_from_behind is None:
@@ -147,6 +158,25 @@ def fallback(
         follower = unescaped(hit, problem, path, runaway.profile, runaway.violations, config)
         message += f"; {follower.obstacle_id} cannot be escaped: {follower.reason.description}"
     return Fallback(chosen.trajectory, tuple(chosen.violations), message, chosen.profile.kind, follower)
+
+
+def straight_on(ref: ReferenceLine, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Path:
+    """The straight line from the ego's planned point (its centre, a car's rear axle) along its heading
+    [rad], long enough to brake to a stop
+    from its speed (``v²/(2·a_dec)`` plus a second at that speed for the jerk's ramp, 1 m at least), at
+    knots ``config.lateral.knot_spacing`` [m] apart or wider (at most ``max_knots``); ``s, d`` by TransF-κ."""
+    ego, vehicle = problem.ego, problem.vehicle
+    v0 = max(ego.speed, 0.0)
+    length = max(v0 * v0 / (2.0 * vehicle.max_deceleration) + v0, 1.0)
+    n = int(np.clip(np.ceil(length / config.lateral.knot_spacing) + 1, 2, config.lateral.max_knots))
+    sigma: FloatArray = np.linspace(0.0, length, n)
+    # the planned point: a car's rear axle, ``l_r`` behind the centre along the yaw
+    cos, sin = np.cos(ego.heading), np.sin(ego.heading)
+    x = ego.x + (sigma - vehicle.rear_offset) * cos
+    y = ego.y + (sigma - vehicle.rear_offset) * sin
+    frenet = to_frenet(ref, np.column_stack((x, y)))
+    heading = np.full(n, ego.heading)
+    return Path(s=frenet.s, d=frenet.d, x=x, y=y, heading=heading, curvature=np.zeros(n), sigma=sigma)
 
 
 def _distinct(*paths: Path) -> list[Path]:

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 from fastapi.testclient import TestClient
-from hypothesis import HealthCheck, given, note, settings
+from hypothesis import HealthCheck, example, given, note, settings
 from hypothesis import strategies as st
 
 from app.limits import (
@@ -85,6 +85,19 @@ egos = st.fixed_dictionaries(
     car=cars,
     ego=egos,
     target=st.none() | st.floats(0.0, 60.0),
+)
+@example(  # found by hypothesis: 168 m/s into a hairpin with 1 m/s² of lateral acceleration
+    road="hairpin_4m",
+    vehicle={
+        "max_speed": 1.0,
+        "max_acceleration": 1.0,
+        "max_deceleration": 22.75989509352673,
+        "max_lateral_acceleration": 1.0,
+        "max_curvature": 1.0,
+    },
+    car={},
+    ego={"speed": 168.17414165184545, "acceleration": 0.0},
+    target=None,
 )
 def test_every_answer_to_an_extreme_vehicle_passes_the_independent_checks(
     client: TestClient,

@@ -252,3 +252,22 @@ def test_every_answer_in_a_scene_that_allows_it_is_within_the_vehicles_limits(
     event(result.status)
     note(f"{result.status}: {result.message}")
     assert limit_problems(problem, result.trajectory) == []
+
+
+@pytest.mark.parametrize("car_model", [False, True])
+def test_a_start_too_fast_for_every_bend_ahead_brakes_straight_on_within_the_limits(car_model: bool) -> None:
+    """At 60 m/s on a bend of 10 m radius every path along the road breaks the lateral limit (36 g):
+    the fallback brakes straight on along the ego's heading instead (no curvature), which keeps every
+    limit of the vehicle whatever else it breaks (here: it leaves the lane)."""
+    road = Road([arc_piece(10.0, np.pi), straight_piece(80.0)])
+    vehicle = Vehicle(wheelbase=2.7, rear_axle_offset=1.35) if car_model else Vehicle()
+    x, y, heading = road.pose(2.0)
+    problem = PlanningProblem(road.polyline(0.5), Lane(3.5, 3.5), Ego(x, y, heading, 60.0), (), vehicle)
+    result = plan(problem)
+    assert result.status == "fallback"
+    assert limit_problems(problem, result.trajectory) == []
+    traj = result.trajectory
+    np.testing.assert_allclose(traj.curvature, 0.0, atol=1e-9)
+    np.testing.assert_allclose(np.unwrap(traj.heading), heading, atol=1e-9)
+    assert traj.v[-1] < traj.v[0]
+    assert KIND.LANE in {v.kind for v in result.violations}
