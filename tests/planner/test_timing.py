@@ -110,16 +110,16 @@ def test_a_plan_that_overruns_in_its_last_stage_is_a_braking_fallback(
 ) -> None:
     """The trajectory stage runs after the speed stage's check: an overrun there is caught too (the
     answer is a braking fallback, not an ``ok`` past the budget)."""
-    import planner.pipeline as pipeline
+    import planner.drive as drive
 
     budget_ms = 400.0
-    slow = pipeline._trajectory
+    slow = drive._trajectory
 
     def slow_trajectory(*args: object, **kwargs: object) -> object:
         time.sleep(0.4)
         return slow(*args, **kwargs)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(pipeline, "_trajectory", slow_trajectory)
+    monkeypatch.setattr(drive, "_trajectory", slow_trajectory)
     base = demo_problem()
     problem = replace(base, options=replace(base.options, time_budget_ms=budget_ms))
     result = plan(problem)
