@@ -20,9 +20,10 @@
   ``[σ_in, σ_out]`` (:func:`planner.goal_region.along_path`), entered and left ``m = min(margin,
   (σ_out − σ_in)/4)`` inside:
 
-  - a speed range from 0 to below ``stop_speed`` is a stop inside, as soon as it comfortably can: ``σ_stop`` at the region's
-    entry (``m`` in), else its middle, else its exit (``m`` before it) — points fixed on the reference, so
-    that the stop does not creep on from cycle to cycle —, the first one the vehicle can stop at braking
+  - a speed range from 0 to below ``stop_speed`` is a stop inside, as soon as it comfortably can:
+    ``σ_stop`` at the region's entry (``m`` in), else its middle, else its exit (``m`` before it) —
+    points fixed on the reference, so that the stop does not creep on from cycle to cycle —, the first
+    one the vehicle can stop at braking
     at ``a_c``, ``deceleration_share`` of its deceleration (the exit also where only full braking can; no
     stop where not even that can);
     where ``a_c`` can stop there, the limit keeps to its braking curve to ``m/2`` beyond the stop,
@@ -274,16 +275,24 @@ def toward_region(
     if not np.any(np.abs(shift) > 1e-9):
         return d
     first, last = np.flatnonzero(within)[[0, -1]]
-    blend = max(2.0 * vehicle.length, 1.5 * problem.ego.speed)
-    before = _smoothstep((s - (s[first] - blend)) / blend) * shift[first]
-    shift = np.where(within, shift, np.where(s < s[first], before, 0.0))
     band = lane_bounds(
         ref, problem.lane, s, half_width=0.5 * vehicle.width, margin=problem.options.lateral_margin
     )
+    extent = footprint_extent(np.zeros_like(s), vehicle, config.obstacle_margin)
+    blend = max(2.0 * vehicle.length, 1.5 * problem.ego.speed)
+    # A static obstacle on the blend (a parked car just before the region): blend in beyond the last knot
+    # where the candidate's own footprint meets its box grown by the move, no earlier.
+    close = box_hits(boxes, s, d + np.where(s < s[first], shift[first], 0.0), extent)[:first]
+    if close.any():
+        blend = min(blend, float(s[first] - s[int(np.flatnonzero(close)[-1])]))
+    if blend <= 0.0:
+        return d
+    before = _smoothstep((s - (s[first] - blend)) / blend) * shift[first]
+    shift = np.where(within, shift, np.where(s < s[first], before, 0.0))
     moved = np.clip(d + shift, band.lower, np.maximum(band.upper, band.lower))
     heading = np.arctan(np.gradient(moved, s)) if s.size > 1 else np.zeros_like(s)
     hits = box_hits(boxes, s, moved, footprint_extent(heading, vehicle, config.obstacle_margin))
-    if np.any(hits[: last + 1]):
+    if np.any((hits & (np.abs(moved - d) > 1e-9))[: last + 1]):  # (only where moved: not the candidate's)
         return d
     return np.asarray(moved)
 
