@@ -83,9 +83,9 @@ def space_time_bounds(
     along = Along.of(ref, path, problem, config)
     # where an obstacle was a headway ago, not where it is: a gap that grows with its speed
     leaders = [ob for ob in movers if ob.id not in passing] if passing else movers
-    upper = (
-        space_time_bound(along, leaders, np.maximum(t - speed.headway, 0.0), start_s) if leaders else None
-    )
+    shifted = np.maximum(t - speed.headway, 0.0)
+    crossing = PassTest.of(path, problem, shifted, t, config)
+    upper = space_time_bound(along, leaders, shifted, start_s, crossing) if leaders else None
     lower = follower_bound(along, movers, t, speed.follower_headway, start_s, problem.ego.speed)
     return SpaceTimeBounds(
         upper=None if upper is None else np.maximum(upper - gap, 0.0),
@@ -133,13 +133,57 @@ class Along:
         return boxes_overlap(s, d, self.extent, s_min, s_max, d_min, d_max)
 
 
+@dataclass(frozen=True)
+class PassTest:
+    """What decides that the ego passes a vehicle crossing its path first instead of yielding to it.
+
+    Attributes:
+        arrive: when [s] the ego gets to each knot of the path driving on at the lower of its speed and
+            the target, slowing only for the path's curvature (``√(limit_margin · a_lat / |κ|)``).
+        when: the times [s] of the obstacles' states the bound is computed at (shape (T,)).
+        least: how far [m] along the path the ego is at least at each bound knot braking as hard as
+            it can from now, plus ``stop_gap`` (shape (T,)): a bound below it cannot be kept.
+        margin: how long [s] before a crossing vehicle's box meets the path the ego must be beyond it.
+    """
+
+    arrive: FloatArray
+    when: FloatArray
+    least: FloatArray
+    margin: float
+
+    @classmethod
+    def of(
+        cls, path: Path, problem: PlanningProblem, when: FloatArray, t: FloatArray, config: PlannerConfig
+    ) -> PassTest:
+        """The test along ``path`` for the obstacles' states at ``when`` [s] bounding the knots ``t`` [s]."""
+        vehicle = problem.vehicle
+        curve = np.sqrt(
+            config.limit_margin * vehicle.max_lateral_acceleration / np.maximum(np.abs(path.curvature), 1e-9)
+        )
+        speed = np.maximum(np.minimum(_pace(problem), curve), 1e-3)
+        pace = 1.0 / speed
+        arrive = np.concatenate(([0.0], np.cumsum(0.5 * (pace[1:] + pace[:-1]) * np.diff(path.sigma))))
+        v0, decel = max(problem.ego.speed, 0.0), vehicle.max_deceleration
+        stop = np.minimum(t, v0 / decel)
+        least = v0 * stop - 0.5 * decel * stop * stop + config.stop_gap
+        return cls(arrive, np.asarray(when, dtype=float), least, config.speed.pass_margin)
+
+
 def space_time_bound(
-    along: Along, movers: list[DynamicObstacle], t: FloatArray, start_s: float
+    along: Along,
+    movers: list[DynamicObstacle],
+    t: FloatArray,
+    start_s: float,
+    crossing: PassTest | None = None,
 ) -> FloatArray | None:
     """``σ_max(t_k)`` [m]: how far along the path the vehicle's centre may be at each time so that its
-    footprint stays clear of every moving obstacle's box (follow or yield). Obstacles behind the ego
-    at the start are not followed: one coming from behind is the follower's to avoid (braking for it as
-    it overtakes would invite a rear-end collision)."""
+    footprint stays clear of every moving obstacle's box at the times ``t`` [s] (follow or yield).
+    Obstacles behind the ego at the start are not followed: one coming from behind is the follower's to
+    avoid (braking for it as it overtakes would invite a rear-end collision). With ``crossing``
+    (:class:`PassTest`) nor is one the ego passes first: off the path at the start, and the ego, driving
+    on, beyond it (past the last knot its box meets) ``margin`` before every time it meets the path — or
+    beyond it by then at all, where the ego cannot brake behind it any more (then passing is the way out
+    of its path)."""
     near, states = along.near(movers, t)
     if near.size == 0:
         return None
@@ -148,10 +192,30 @@ def space_time_bound(
     ahead = (0.5 * (s_min[:, :1] + s_max[:, :1]) > start_s) | (s_min[:, :1] > start_s)
     hit = along.meets(boxes)
     sigma = along.path.sigma
-    first = np.where(hit.any(axis=2), np.argmax(hit, axis=2), -1)
+    meets = np.asarray(hit.any(axis=2), dtype=bool)
+    first = np.where(meets, np.argmax(hit, axis=2), -1)
     limit = np.where(first > 0, sigma[np.maximum(first - 1, 0)], np.where(first == 0, 0.0, np.inf))
+    if crossing is not None:
+        # when the ego is beyond each box: at the knot after the last one the box meets (never: inf)
+        after = sigma.size - hit[..., ::-1].argmax(axis=2)
+        beyond = np.where(after < sigma.size, crossing.arrive[np.minimum(after, sigma.size - 1)], np.inf)
+        when = crossing.when[None, :]
+        early = np.all(~meets | (beyond <= when - crossing.margin), axis=1) & ~meets[:, 0]
+        stuck = np.any(meets & (limit < crossing.least[None, :]), axis=1)
+        passed = early | (stuck & np.all(~meets | (beyond <= when), axis=1))
+        limit = np.where(passed[:, None], np.inf, limit)
     limit = np.where(ahead, limit, np.inf)
     return np.asarray(limit.min(axis=0))
+
+
+def _pace(problem: PlanningProblem) -> float:
+    """The speed [m/s] a vehicle crossing ahead is judged passed at: the lower of the ego's and the
+    target (:func:`planner.speed.target_speed`'s rule: without a target, the limit, else ``max_speed``)."""
+    options, vehicle = problem.options, problem.vehicle
+    target = options.target_speed
+    if target is None:
+        target = vehicle.max_speed if options.speed_limit is None else options.speed_limit
+    return max(min(problem.ego.speed, target, vehicle.max_speed), 0.0)
 
 
 def frenet_extents(
