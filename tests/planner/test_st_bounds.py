@@ -161,7 +161,9 @@ def test_a_car_that_overtakes_and_cuts_in_ahead_is_not_chased() -> None:
 
 def _crossing(name: str, x: float, at: float) -> DynamicObstacle:
     """A car crossing the road at ``x`` [m] along +y at 10 m/s, on the reference at ``at`` [s]."""
-    return DynamicObstacle(name, 4.5, 1.8, np.column_stack((T, x + 0 * T, 10.0 * (T - at), 0 * T + np.pi / 2)))
+    return DynamicObstacle(
+        name, 4.5, 1.8, np.column_stack((T, x + 0 * T, 10.0 * (T - at), 0 * T + np.pi / 2))
+    )
 
 
 def test_crossing_traffic_the_ego_is_well_ahead_of_is_passed_not_yielded_to() -> None:
