@@ -7,7 +7,8 @@ profile's knot times ``t_k`` [s]:
 
 * the obstacles ahead of the ego at the start: ``σ(t_k) ≤ σ_max(t_k)``, short of where the footprint
   (``obstacle_margin`` around it) first meets the obstacle's Frenet box as it was a ``headway`` earlier,
-  less ``stop_gap`` (:func:`space_time_bound`);
+  less ``stop_gap`` (:func:`space_time_bound`) — except a vehicle crossing the path later that the ego,
+  driving on, is past ``pass_margin`` before it gets there: passed first (:class:`PassTest`);
 * the vehicles behind it (:func:`followers`): ``σ(t_k) ≥ σ_min(t_k)``, ahead of where the footprint meets
   the box at any time in ``[t_k, t_k + follower_headway]``, plus ``stop_gap`` (:func:`follower_bound`; a
   soft bound in the speed profile).
