@@ -91,7 +91,7 @@ class SpeedConfig:
     #: brake into it, and the two headways together must fit between a leader and a follower.
     follower_headway: float = 0.5
     #: a vehicle that crosses the path ahead only later is passed, not yielded to, when the ego driving
-    #: on (at the lower of its speed and the target, slowing for curves) would be beyond it this long [s]
+    #: on (towards the target, slowing for curves) would be beyond it this long [s]
     #: before every time it is on the path (it then bounds nothing; the final checks still judge the
     #: trajectory; :class:`planner.st_bounds.PassTest`)
     pass_margin: float = 0.8

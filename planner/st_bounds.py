@@ -139,8 +139,10 @@ class PassTest:
     """What decides that the ego passes a vehicle crossing its path first instead of yielding to it.
 
     Attributes:
-        arrive: when [s] the ego gets to each knot of the path driving on at the lower of its speed and
-            the target, slowing only for the path's curvature (``√(limit_margin · a_lat / |κ|)``).
+        arrive: when [s] the ego gets to each knot of the path driving on towards the target (from its
+            speed, at half its acceleration, or down to it at once), slowing only for the path's
+            curvature (``√(limit_margin · a_lat / |κ|)``): what the speed profile does without the
+            vehicle's bound.
         when: the times [s] of the obstacles' states the bound is computed at (shape (T,)).
         least: how far [m] along the path the ego is at least at each bound knot braking as hard as
             it can from now, plus ``stop_gap`` (shape (T,)): a bound below it cannot be kept.
@@ -161,7 +163,9 @@ class PassTest:
         curve = np.sqrt(
             config.limit_margin * vehicle.max_lateral_acceleration / np.maximum(np.abs(path.curvature), 1e-9)
         )
-        speed = np.maximum(np.minimum(_pace(problem), curve), 1e-3)
+        ego = max(problem.ego.speed, 0.0)
+        rise = np.sqrt(ego * ego + vehicle.max_acceleration * path.sigma)  # at half the acceleration
+        speed = np.maximum(np.minimum(np.minimum(_target(problem), curve), rise), 1e-3)
         pace = 1.0 / speed
         arrive = np.concatenate(([0.0], np.cumsum(0.5 * (pace[1:] + pace[:-1]) * np.diff(path.sigma))))
         v0, decel = max(problem.ego.speed, 0.0), vehicle.max_deceleration
@@ -209,14 +213,14 @@ def space_time_bound(
     return np.asarray(limit.min(axis=0))
 
 
-def _pace(problem: PlanningProblem) -> float:
-    """The speed [m/s] a vehicle crossing ahead is judged passed at: the lower of the ego's and the
-    target (:func:`planner.speed.target_speed`'s rule: without a target, the limit, else ``max_speed``)."""
+def _target(problem: PlanningProblem) -> float:
+    """The cruise target [m/s] (:func:`planner.speed.target_speed`'s rule: without a target, the limit,
+    else ``max_speed``; within ``max_speed``)."""
     options, vehicle = problem.options, problem.vehicle
     target = options.target_speed
     if target is None:
         target = vehicle.max_speed if options.speed_limit is None else options.speed_limit
-    return max(min(problem.ego.speed, target, vehicle.max_speed), 0.0)
+    return max(min(target, vehicle.max_speed), 0.0)
 
 
 def frenet_extents(
