@@ -360,3 +360,22 @@ def test_a_stop_inside_keeps_its_approach_when_the_window_lies_beyond_the_horizo
     assert aim is not None and aim.lower is not None
     k = np.flatnonzero(np.isfinite(aim.lower))
     assert k.size == 1 and aim.lower[k[0]] == aim.stop
+
+
+def test_offsets_blend_into_a_region_beyond_a_parked_car_after_the_car() -> None:
+    # a car parked in the right of the lane 27–32 m ahead; the candidate passes it on the left (d = 2.3)
+    # and stays at d = 2, beside the region (the lane up to d = 1, from 40 m ahead on): the blend into
+    # the region (1.5 s at 10 m/s before it) would begin on the car, so it begins after the car
+    region = box(EGO_X + 40.0, EGO_X + 115.0, -1.75, 1.0)
+    car = PolygonObstacle("parked", np.array([[37.0, -1.75], [42.0, -1.75], [42.0, 0.6], [37.0, 0.6]]))
+    problem = replace(straight_problem(Goal(region, time=(3.5, 4.5))), obstacles=(car,))
+    ref, _, setup, _ = _stages(problem)
+    s = np.linspace(EGO_X, EGO_X + 120.0, 241)
+    d = np.interp(s, [EGO_X, 30.0, 36.0, 43.0, 48.0], [0.0, 0.0, 2.3, 2.3, 2.0])
+    boxes = frenet_boxes(ref, static_shapes(problem))
+    moved = toward_region(setup, ref, s, d, boxes, problem)
+    assert moved is not d
+    by_car = s <= 42.0 + 0.5 * problem.vehicle.length
+    assert np.array_equal(moved[by_car], d[by_car])  # not moved where it passes the car
+    over = (s >= EGO_X + 40.0) & (s <= EGO_X + 110.0)
+    assert np.all(moved[over] < 1.0)  # inside (the aim's margin in, scaled against the QP's pull)
