@@ -73,10 +73,13 @@ def space_time_bounds(
     start_s: float,
     config: PlannerConfig = DEFAULT_CONFIG,
     passing: Collection[str] = (),
+    pace: FloatArray | None = None,
 ) -> SpaceTimeBounds:
     """Both bounds at the knot times ``t`` [s] (evenly spaced, at least two) for an ego at ``start_s`` [m],
     with their ``stop_gap``; the obstacles whose ids are in ``passing`` (overtaken by a lane decision that
-    borrows the road, :mod:`planner.decision`) are not followed."""
+    borrows the road, :mod:`planner.decision`) are not followed. ``pace``: the speed [m/s] the ego drives
+    on at along the path's knots without the obstacles (the target within the path's limits), for
+    :class:`PassTest`; None: every crossing vehicle is yielded to."""
     movers = moving_obstacles(problem)
     if not movers:
         return SpaceTimeBounds(None, None)
@@ -85,7 +88,7 @@ def space_time_bounds(
     # where an obstacle was a headway ago, not where it is: a gap that grows with its speed
     leaders = [ob for ob in movers if ob.id not in passing] if passing else movers
     shifted = np.maximum(t - speed.headway, 0.0)
-    crossing = PassTest.of(path, problem, shifted, t, config)
+    crossing = None if pace is None else PassTest.of(path, problem, shifted, t, config, pace)
     upper = space_time_bound(along, leaders, shifted, start_s, crossing) if leaders else None
     lower = follower_bound(along, movers, t, speed.follower_headway, start_s, problem.ego.speed)
     return SpaceTimeBounds(
@@ -139,10 +142,10 @@ class PassTest:
     """What decides that the ego passes a vehicle crossing its path first instead of yielding to it.
 
     Attributes:
-        arrive: when [s] the ego gets to each knot of the path driving on towards the target (from its
-            speed, at half its acceleration, or down to it at once), slowing only for the path's
-            curvature (``√(limit_margin · a_lat / |κ|)``): what the speed profile does without the
-            vehicle's bound.
+        arrive: when [s] the ego gets to each knot of the path driving on at ``pace`` (the target within
+            the path's limits), from its speed and out of slower stretches at half its acceleration,
+            into them at ``deceleration_share`` of its deceleration: what the speed profile does
+            without the vehicle's bound.
         when: the times [s] of the obstacles' states the bound is computed at (shape (T,)).
         least: how far [m] along the path the ego is at least at each bound knot braking as hard as
             it can from now, plus ``stop_gap`` (shape (T,)): a bound below it cannot be kept.
@@ -156,21 +159,32 @@ class PassTest:
 
     @classmethod
     def of(
-        cls, path: Path, problem: PlanningProblem, when: FloatArray, t: FloatArray, config: PlannerConfig
+        cls,
+        path: Path,
+        problem: PlanningProblem,
+        when: FloatArray,
+        t: FloatArray,
+        config: PlannerConfig,
+        pace: FloatArray,
     ) -> PassTest:
-        """The test along ``path`` for the obstacles' states at ``when`` [s] bounding the knots ``t`` [s]."""
-        vehicle = problem.vehicle
-        curve = np.sqrt(
-            config.limit_margin * vehicle.max_lateral_acceleration / np.maximum(np.abs(path.curvature), 1e-9)
-        )
+        """The test along ``path`` for the obstacles' states at ``when`` [s] bounding the knots ``t`` [s],
+        the ego driving on at ``pace`` [m/s] at the path's knots."""
+        vehicle, sigma = problem.vehicle, path.sigma
         ego = max(problem.ego.speed, 0.0)
-        rise = np.sqrt(ego * ego + vehicle.max_acceleration * path.sigma)  # at half the acceleration
-        speed = np.maximum(np.minimum(np.minimum(_target(problem), curve), rise), 1e-3)
-        pace = 1.0 / speed
-        arrive = np.concatenate(([0.0], np.cumsum(0.5 * (pace[1:] + pace[:-1]) * np.diff(path.sigma))))
-        v0, decel = max(problem.ego.speed, 0.0), vehicle.max_deceleration
-        stop = np.minimum(t, v0 / decel)
-        least = v0 * stop - 0.5 * decel * stop * stop + config.stop_gap
+        accel = 0.5 * vehicle.max_acceleration
+        decel = config.goal.deceleration_share * vehicle.max_deceleration
+        # v² within pace², reached from the ego's speed and from every slower knot behind at ``accel``,
+        # and slowing into every slower knot ahead at ``decel`` (running minima: no loop over knots)
+        top = np.minimum(np.asarray(pace, dtype=float) ** 2, ego * ego + 2.0 * accel * sigma)
+        top = np.minimum(top, np.minimum.accumulate(top - 2.0 * accel * sigma) + 2.0 * accel * sigma)
+        ahead = np.minimum.accumulate((top + 2.0 * decel * sigma)[::-1])[::-1]
+        speed = np.sqrt(np.maximum(np.minimum(top, ahead - 2.0 * decel * sigma), 0.0))
+        slowness = 1.0 / np.maximum(speed, 1e-3)
+        steps = 0.5 * (slowness[1:] + slowness[:-1]) * np.diff(path.sigma)
+        arrive = np.concatenate(([0.0], np.cumsum(steps)))
+        hardest = vehicle.max_deceleration
+        stop = np.minimum(t, ego / hardest)
+        least = ego * stop - 0.5 * hardest * stop * stop + config.stop_gap
         return cls(arrive, np.asarray(when, dtype=float), least, config.speed.pass_margin)
 
 
@@ -211,16 +225,6 @@ def space_time_bound(
         limit = np.where(passed[:, None], np.inf, limit)
     limit = np.where(ahead, limit, np.inf)
     return np.asarray(limit.min(axis=0))
-
-
-def _target(problem: PlanningProblem) -> float:
-    """The cruise target [m/s] (:func:`planner.speed.target_speed`'s rule: without a target, the limit,
-    else ``max_speed``; within ``max_speed``)."""
-    options, vehicle = problem.options, problem.vehicle
-    target = options.target_speed
-    if target is None:
-        target = vehicle.max_speed if options.speed_limit is None else options.speed_limit
-    return max(min(target, vehicle.max_speed), 0.0)
 
 
 def frenet_extents(

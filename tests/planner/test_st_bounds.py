@@ -27,6 +27,7 @@ from planner.problem import (
 )
 from planner.reference import build_reference
 from planner.result import PlanResult
+from planner.speed import speed_limit
 from planner.st_bounds import followers, moving_obstacles, space_time_bounds, static_shapes
 from planner.trajectory import Path, frenet_path
 from planner.validation import Violation
@@ -169,9 +170,14 @@ def _crossing(name: str, x: float, at: float) -> DynamicObstacle:
 def test_crossing_traffic_the_ego_is_well_ahead_of_is_passed_not_yielded_to() -> None:
     # the ego (x = 30 m, 10 m/s) is beyond x = 60 m about 3.5 s from now: a car crossing there at 6 s
     # is passed first; one crossing there at 3 s is yielded to (the ego stops short of its path)
-    late = space_time_bounds(REF, _path(), _problem(_crossing("late", 60.0, 6.0)), KNOTS, 30.0)
+    path = _path()
+    late_problem = _problem(_crossing("late", 60.0, 6.0))
+    pace = speed_limit(path, late_problem, cap=10.0)  # the target within the path's limits
+    late = space_time_bounds(REF, path, late_problem, KNOTS, 30.0, pace=pace)
     assert late.upper is None or np.all(np.isinf(late.upper))
-    soon = space_time_bounds(REF, _path(), _problem(_crossing("soon", 60.0, 3.0)), KNOTS, 30.0)
+    yielded = space_time_bounds(REF, path, late_problem, KNOTS, 30.0)  # (without a pace: yield)
+    assert yielded.upper is not None and np.isfinite(yielded.upper).any()
+    soon = space_time_bounds(REF, path, _problem(_crossing("soon", 60.0, 3.0)), KNOTS, 30.0, pace=pace)
     assert soon.upper is not None and np.isfinite(soon.upper).any()
     assert np.nanmin(soon.upper) < 60.0 - 30.0 - 2.25  # short of its path
     # and the whole plan drives on at its pace through the first (no slowing for it), within the checks
