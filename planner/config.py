@@ -90,11 +90,6 @@ class SpeedConfig:
     #: the headway kept to the obstacles ahead: the gap behind is the follower's to keep, ours is not to
     #: brake into it, and the two headways together must fit between a leader and a follower.
     follower_headway: float = 0.5
-    #: a vehicle that crosses the path ahead only later is passed, not yielded to, when the ego driving
-    #: on (towards the target, slowing for curves) would be beyond it this long [s]
-    #: before every time it is on the path (it then bounds nothing; the final checks still judge the
-    #: trajectory; :class:`planner.st_bounds.PassTest`)
-    pass_margin: float = 0.8
     #: share of a car's ``max_steering_rate`` the speed limit along the path plans with [-]
     steering_rate_share: float = 0.9
     #: SQP iterations (QPs solved) of one speed profile

@@ -297,9 +297,7 @@ def speed_stage(
     if aim is not None:
         s_stop = min(s_stop, aim.stop)
     t = np.arange(steps + 1, dtype=np.float64) * dt
-    # the pace a crossing vehicle is judged passed at: the target within the path's own limits
-    pace = speed_limit(path, problem, config, cap=target_speed(problem))
-    bounds = space_time_bounds(ref, path, problem, t, start.s, config, passing, pace)
+    bounds = space_time_bounds(ref, path, problem, t, start.s, config, passing)
     jerk = cfg.emergency_jerk if lateral.stops else cfg.jerk
     speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
     if max(speed.speed_violation, speed.position_violation) > cfg.slack and jerk < cfg.emergency_jerk:
@@ -311,12 +309,9 @@ def speed_stage(
         # Behind the follower bound with the comfortable jerk: braking later, as hard as the emergency
         # jerk allows, keeps ahead of it longer where a curve or a leader ahead makes the speed drop.
         harder = _solve(solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config, aim)
-        if (
-            harder.info.usable
-            and harder.follower_violation < speed.follower_violation - cfg.slack
-            and max(harder.speed_violation, harder.position_violation)
-            <= max(speed.speed_violation, speed.position_violation, cfg.slack)
-        ):
+        if harder.info.usable and harder.follower_violation < speed.follower_violation - cfg.slack and max(
+            harder.speed_violation, harder.position_violation
+        ) <= max(speed.speed_violation, speed.position_violation, cfg.slack):
             speed = harder
     profile = Profile.optimised(speed)
     if speed.info.usable and speed.position_violation > cfg.position_slack:

@@ -7,8 +7,7 @@ profile's knot times ``t_k`` [s]:
 
 * the obstacles ahead of the ego at the start: ``σ(t_k) ≤ σ_max(t_k)``, short of where the footprint
   (``obstacle_margin`` around it) first meets the obstacle's Frenet box as it was a ``headway`` earlier,
-  less ``stop_gap`` (:func:`space_time_bound`) — except a vehicle crossing the path later that the ego,
-  driving on, is past ``pass_margin`` before it gets there: passed first (:class:`PassTest`);
+  less ``stop_gap`` (:func:`space_time_bound`);
 * the vehicles behind it (:func:`followers`): ``σ(t_k) ≥ σ_min(t_k)``, ahead of where the footprint meets
   the box at any time in ``[t_k, t_k + follower_headway]``, plus ``stop_gap`` (:func:`follower_bound`; a
   soft bound in the speed profile).
@@ -73,13 +72,10 @@ def space_time_bounds(
     start_s: float,
     config: PlannerConfig = DEFAULT_CONFIG,
     passing: Collection[str] = (),
-    pace: FloatArray | None = None,
 ) -> SpaceTimeBounds:
     """Both bounds at the knot times ``t`` [s] (evenly spaced, at least two) for an ego at ``start_s`` [m],
     with their ``stop_gap``; the obstacles whose ids are in ``passing`` (overtaken by a lane decision that
-    borrows the road, :mod:`planner.decision`) are not followed. ``pace``: the speed [m/s] the ego drives
-    on at along the path's knots without the obstacles (the target within the path's limits), for
-    :class:`PassTest`; None: every crossing vehicle is yielded to."""
+    borrows the road, :mod:`planner.decision`) are not followed."""
     movers = moving_obstacles(problem)
     if not movers:
         return SpaceTimeBounds(None, None)
@@ -87,9 +83,9 @@ def space_time_bounds(
     along = Along.of(ref, path, problem, config)
     # where an obstacle was a headway ago, not where it is: a gap that grows with its speed
     leaders = [ob for ob in movers if ob.id not in passing] if passing else movers
-    shifted = np.maximum(t - speed.headway, 0.0)
-    crossing = None if pace is None else PassTest.of(path, problem, shifted, t, config, pace)
-    upper = space_time_bound(along, leaders, shifted, start_s, crossing) if leaders else None
+    upper = (
+        space_time_bound(along, leaders, np.maximum(t - speed.headway, 0.0), start_s) if leaders else None
+    )
     lower = follower_bound(along, movers, t, speed.follower_headway, start_s, problem.ego.speed)
     return SpaceTimeBounds(
         upper=None if upper is None else np.maximum(upper - gap, 0.0),
@@ -137,72 +133,13 @@ class Along:
         return boxes_overlap(s, d, self.extent, s_min, s_max, d_min, d_max)
 
 
-@dataclass(frozen=True)
-class PassTest:
-    """What decides that the ego passes a vehicle crossing its path first instead of yielding to it.
-
-    Attributes:
-        arrive: when [s] the ego gets to each knot of the path driving on at ``pace`` (the target within
-            the path's limits), from its speed and out of slower stretches at half its acceleration,
-            into them at ``deceleration_share`` of its deceleration: what the speed profile does
-            without the vehicle's bound.
-        when: the times [s] of the obstacles' states the bound is computed at (shape (T,)).
-        least: how far [m] along the path the ego is at least at each bound knot braking as hard as
-            it can from now, plus ``stop_gap`` (shape (T,)): a bound below it cannot be kept.
-        margin: how long [s] before a crossing vehicle's box meets the path the ego must be beyond it.
-    """
-
-    arrive: FloatArray
-    when: FloatArray
-    least: FloatArray
-    margin: float
-
-    @classmethod
-    def of(
-        cls,
-        path: Path,
-        problem: PlanningProblem,
-        when: FloatArray,
-        t: FloatArray,
-        config: PlannerConfig,
-        pace: FloatArray,
-    ) -> PassTest:
-        """The test along ``path`` for the obstacles' states at ``when`` [s] bounding the knots ``t`` [s],
-        the ego driving on at ``pace`` [m/s] at the path's knots."""
-        vehicle, sigma = problem.vehicle, path.sigma
-        ego = max(problem.ego.speed, 0.0)
-        accel = 0.5 * vehicle.max_acceleration
-        decel = config.goal.deceleration_share * vehicle.max_deceleration
-        # v² within pace², reached from the ego's speed and from every slower knot behind at ``accel``,
-        # and slowing into every slower knot ahead at ``decel`` (running minima: no loop over knots)
-        top = np.minimum(np.asarray(pace, dtype=float) ** 2, ego * ego + 2.0 * accel * sigma)
-        top = np.minimum(top, np.minimum.accumulate(top - 2.0 * accel * sigma) + 2.0 * accel * sigma)
-        ahead = np.minimum.accumulate((top + 2.0 * decel * sigma)[::-1])[::-1]
-        speed = np.sqrt(np.maximum(np.minimum(top, ahead - 2.0 * decel * sigma), 0.0))
-        slowness = 1.0 / np.maximum(speed, 1e-3)
-        steps = 0.5 * (slowness[1:] + slowness[:-1]) * np.diff(path.sigma)
-        arrive = np.concatenate(([0.0], np.cumsum(steps)))
-        hardest = vehicle.max_deceleration
-        stop = np.minimum(t, ego / hardest)
-        least = ego * stop - 0.5 * hardest * stop * stop + config.stop_gap
-        return cls(arrive, np.asarray(when, dtype=float), least, config.speed.pass_margin)
-
-
 def space_time_bound(
-    along: Along,
-    movers: list[DynamicObstacle],
-    t: FloatArray,
-    start_s: float,
-    crossing: PassTest | None = None,
+    along: Along, movers: list[DynamicObstacle], t: FloatArray, start_s: float
 ) -> FloatArray | None:
     """``σ_max(t_k)`` [m]: how far along the path the vehicle's centre may be at each time so that its
-    footprint stays clear of every moving obstacle's box at the times ``t`` [s] (follow or yield).
-    Obstacles behind the ego at the start are not followed: one coming from behind is the follower's to
-    avoid (braking for it as it overtakes would invite a rear-end collision). With ``crossing``
-    (:class:`PassTest`) nor is one the ego passes first: off the path at the start, and the ego, driving
-    on, beyond it (past the last knot its box meets) ``margin`` before every time it meets the path — or
-    beyond it by then at all, where the ego cannot brake behind it any more (then passing is the way out
-    of its path)."""
+    footprint stays clear of every moving obstacle's box (follow or yield). Obstacles behind the ego
+    at the start are not followed: one coming from behind is the follower's to avoid (braking for it as
+    it overtakes would invite a rear-end collision)."""
     near, states = along.near(movers, t)
     if near.size == 0:
         return None
@@ -211,18 +148,8 @@ def space_time_bound(
     ahead = (0.5 * (s_min[:, :1] + s_max[:, :1]) > start_s) | (s_min[:, :1] > start_s)
     hit = along.meets(boxes)
     sigma = along.path.sigma
-    meets = np.asarray(hit.any(axis=2), dtype=bool)
-    first = np.where(meets, np.argmax(hit, axis=2), -1)
+    first = np.where(hit.any(axis=2), np.argmax(hit, axis=2), -1)
     limit = np.where(first > 0, sigma[np.maximum(first - 1, 0)], np.where(first == 0, 0.0, np.inf))
-    if crossing is not None:
-        # when the ego is beyond each box: at the knot after the last one the box meets (never: inf)
-        after = sigma.size - hit[..., ::-1].argmax(axis=2)
-        beyond = np.where(after < sigma.size, crossing.arrive[np.minimum(after, sigma.size - 1)], np.inf)
-        when = crossing.when[None, :]
-        early = np.all(~meets | (beyond <= when - crossing.margin), axis=1) & ~meets[:, 0]
-        stuck = np.any(meets & (limit < crossing.least[None, :]), axis=1)
-        passed = early | (stuck & np.all(~meets | (beyond <= when), axis=1))
-        limit = np.where(passed[:, None], np.inf, limit)
     limit = np.where(ahead, limit, np.inf)
     return np.asarray(limit.min(axis=0))
 

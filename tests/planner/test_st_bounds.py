@@ -27,7 +27,6 @@ from planner.problem import (
 )
 from planner.reference import build_reference
 from planner.result import PlanResult
-from planner.speed import speed_limit
 from planner.st_bounds import followers, moving_obstacles, space_time_bounds, static_shapes
 from planner.trajectory import Path, frenet_path
 from planner.validation import Violation
@@ -158,31 +157,3 @@ def test_a_car_that_overtakes_and_cuts_in_ahead_is_not_chased() -> None:
     assert result.status == "ok", result.message
     assert _violations(problem, result) == []
     assert np.max(result.trajectory.v) < 8.1  # not chasing it to get ahead again
-
-
-def _crossing(name: str, x: float, at: float) -> DynamicObstacle:
-    """A car crossing the road at ``x`` [m] along +y at 10 m/s, on the reference at ``at`` [s]."""
-    return DynamicObstacle(
-        name, 4.5, 1.8, np.column_stack((T, x + 0 * T, 10.0 * (T - at), 0 * T + np.pi / 2))
-    )
-
-
-def test_crossing_traffic_the_ego_is_well_ahead_of_is_passed_not_yielded_to() -> None:
-    # the ego (x = 30 m, 10 m/s) is beyond x = 60 m about 3.5 s from now: a car crossing there at 6 s
-    # is passed first; one crossing there at 3 s is yielded to (the ego stops short of its path)
-    path = _path()
-    late_problem = _problem(_crossing("late", 60.0, 6.0))
-    pace = speed_limit(path, late_problem, cap=10.0)  # the target within the path's limits
-    late = space_time_bounds(REF, path, late_problem, KNOTS, 30.0, pace=pace)
-    assert late.upper is None or np.all(np.isinf(late.upper))
-    yielded = space_time_bounds(REF, path, late_problem, KNOTS, 30.0)  # (without a pace: yield)
-    assert yielded.upper is not None and np.isfinite(yielded.upper).any()
-    soon = space_time_bounds(REF, path, _problem(_crossing("soon", 60.0, 3.0)), KNOTS, 30.0, pace=pace)
-    assert soon.upper is not None and np.isfinite(soon.upper).any()
-    assert np.nanmin(soon.upper) < 60.0 - 30.0 - 2.25  # short of its path
-    # and the whole plan drives on at its pace through the first (no slowing for it), within the checks
-    result = plan(_problem(_crossing("late", 60.0, 6.0)))
-    assert result.status == "ok", result.message
-    assert result.trajectory.v.min() > 9.9
-    stopped = plan(_problem(_crossing("soon", 60.0, 3.0)))
-    assert stopped.trajectory.v.min() < 5.0  # it gives way
