@@ -108,6 +108,9 @@ class GoalConfig:
     #: how far inside the region's ends along the path the plan aims to enter, leave and stop [m] (at most
     #: a quarter of the region's length along the path)
     margin: float = 0.5
+    #: a speed range from 0 whose top is below this [m/s] asks to stop inside the region (driving through
+    #: so slowly is no way to meet it); one reaching higher allows a stop but asks only for a speed in it
+    stop_speed: float = 1.0
     #: share of ``max_deceleration`` a stop inside the region, or slowing into its speed range, plans with
     #: when it can (it brakes harder only where that is too late) [-]
     deceleration_share: float = 0.5

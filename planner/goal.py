@@ -1,9 +1,10 @@
 """A planning goal: where to be, when, and how fast (every part optional).
 
 ``position`` is a region of the plane (a polygon, or a disc); ``time`` a window ``[t_min, t_max]`` [s]
-from now (``t = 0`` is the ego's state); ``speed`` a range ``[v_min, v_max]`` [m/s] (a range reaching 0
-means: stop inside). The goal is met at a time ``t`` of the trajectory when the vehicle is inside the
-position, ``t`` is inside the window and its speed inside the range, for each part given.
+from now (``t = 0`` is the ego's state); ``speed`` a range ``[v_min, v_max]`` [m/s] (a range from 0 to
+below :attr:`planner.config.GoalConfig.stop_speed` means: stop inside). The goal is met at a time ``t``
+of the trajectory when the vehicle is inside the position, ``t`` is inside the window and its speed
+inside the range, for each part given.
 
 The dataclasses check their fields when they are built and raise
 :class:`~planner.errors.InvalidInputError` naming the field as the JSON request does

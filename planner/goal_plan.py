@@ -20,9 +20,10 @@
   ``[σ_in, σ_out]`` (:func:`planner.goal_region.along_path`), entered and left ``m = min(margin,
   (σ_out − σ_in)/4)`` inside:
 
-  - a speed range reaching 0 is a stop inside, as soon as it comfortably can: ``σ_stop`` at the region's
-    entry (``m`` in), else its middle, else its exit (``m`` before it) — points fixed on the reference, so
-    that the stop does not creep on from cycle to cycle —, the first one the vehicle can stop at braking
+  - a speed range from 0 to below ``stop_speed`` is a stop inside, as soon as it comfortably can:
+    ``σ_stop`` at the region's entry (``m`` in), else its middle, else its exit (``m`` before it) —
+    points fixed on the reference, so that the stop does not creep on from cycle to cycle —, the first
+    one the vehicle can stop at braking
     at ``a_c``, ``deceleration_share`` of its deceleration (the exit also where only full braking can; no
     stop where not even that can);
     where ``a_c`` can stop there, the limit keeps to its braking curve to ``m/2`` beyond the stop,
@@ -99,6 +100,9 @@ class GoalSetup:
         cap: the highest speed the speed profile may drive for the goal [m/s].
         v_target: the cruise target [m/s].
         block: why the goal cannot be met, when that is known already (else None).
+        stops_inside: whether the goal asks to stop inside its region: a position and a speed range from
+            0 whose top is below :attr:`planner.config.GoalConfig.stop_speed` (a range from 0 reaching
+            higher allows standing inside, e.g. waiting for the window, but does not ask for it).
     """
 
     goal: Goal
@@ -108,11 +112,7 @@ class GoalSetup:
     cap: float
     v_target: float
     block: GoalBlock | None
-
-    @property
-    def stops_inside(self) -> bool:
-        """Whether the goal asks to stop inside its region (a speed range reaching 0)."""
-        return self.goal.position is not None and self.goal.speed is not None and self.goal.speed[0] <= 0.0
+    stops_inside: bool = False
 
 
 def reach(v0: float, accel: float, cap: float, t: float) -> float:
@@ -157,7 +157,10 @@ def goal_setup(
         )
         ego_in = bool(inside(goal.position, ego.x, ego.y))
     block = _block(goal, region, ego_s, ego_in, problem, allowed)
-    return GoalSetup(goal, region, ego_s, ego_in, cap, v_target, block)
+    speeds = goal.speed
+    stops = goal.position is not None and speeds is not None and speeds[0] <= 0.0
+    stops = stops and speeds is not None and speeds[1] < config.goal.stop_speed
+    return GoalSetup(goal, region, ego_s, ego_in, cap, v_target, block, stops)
 
 
 def ref_s(ref: ReferenceLine, x: float, y: float) -> float:
@@ -272,16 +275,24 @@ def toward_region(
     if not np.any(np.abs(shift) > 1e-9):
         return d
     first, last = np.flatnonzero(within)[[0, -1]]
-    blend = max(2.0 * vehicle.length, 1.5 * problem.ego.speed)
-    before = _smoothstep((s - (s[first] - blend)) / blend) * shift[first]
-    shift = np.where(within, shift, np.where(s < s[first], before, 0.0))
     band = lane_bounds(
         ref, problem.lane, s, half_width=0.5 * vehicle.width, margin=problem.options.lateral_margin
     )
+    extent = footprint_extent(np.zeros_like(s), vehicle, config.obstacle_margin)
+    blend = max(2.0 * vehicle.length, 1.5 * problem.ego.speed)
+    # A static obstacle on the blend (a parked car just before the region): blend in beyond the last knot
+    # where the candidate's own footprint meets its box grown by the move, no earlier.
+    close = box_hits(boxes, s, d + np.where(s < s[first], shift[first], 0.0), extent)[:first]
+    if close.any():
+        blend = min(blend, float(s[first] - s[int(np.flatnonzero(close)[-1])]))
+    if blend <= 0.0:
+        return d
+    before = _smoothstep((s - (s[first] - blend)) / blend) * shift[first]
+    shift = np.where(within, shift, np.where(s < s[first], before, 0.0))
     moved = np.clip(d + shift, band.lower, np.maximum(band.upper, band.lower))
     heading = np.arctan(np.gradient(moved, s)) if s.size > 1 else np.zeros_like(s)
     hits = box_hits(boxes, s, moved, footprint_extent(heading, vehicle, config.obstacle_margin))
-    if np.any(hits[: last + 1]):
+    if np.any((hits & (np.abs(moved - d) > 1e-9))[: last + 1]):  # (only where moved: not the candidate's)
         return d
     return np.asarray(moved)
 
@@ -380,7 +391,8 @@ def speed_aim(
         t_min, t_max = t_min + spare, t_max - spare
         ahead = enter - config.goal.beyond_horizon_share * setup.cap * max(t_max - t[-1], 0.0)
         by_window = _at_knot(t, t_max, ahead, -math.inf, late=True)
-        lower = by_window if lower is None or by_window is None else np.maximum(lower, by_window)
+        if by_window is not None:  # (None: the window asks nothing within the horizon; a stop's own stays)
+            lower = by_window if lower is None else np.maximum(lower, by_window)
         if not setup.stops_inside and t_min > 0.0:
             upper = _at_knot(t, t_min, leave, math.inf, late=False)
         if lower is not None and upper is not None and np.any(lower > upper):  # a window within one step

@@ -12,7 +12,9 @@ it holds makes the goal ``reached``. Otherwise:
   in the window but never at a speed in the range: ``speed_range`` — unless the vehicle is still inside
   at the horizon's end and the window is still open (``on_the_way``);
 * never inside: past the region beside it, ``missed``; standing before it at the horizon's end, or stopped
-  before a block, ``blocked``; a window that closes within the horizon, ``too_far``; else ``on_the_way``.
+  before a block, ``blocked``; a window that closes within the horizon, ``missed`` when the centre is
+  along the region (its ``s`` at least the region's ``s_in``) but beside it then, else ``too_far``; else
+  ``on_the_way``.
 
 Without a region: a window that closes within the horizon and a speed range never met in it,
 ``speed_range``; no sample in a window within the horizon, ``missed``; else ``on_the_way``.
@@ -83,6 +85,12 @@ def judge(setup: GoalSetup, traj: Trajectory, *, fallback: bool, stopped: bool) 
         return _unreachable(GoalReason.BLOCKED, f"the vehicle stops before the region{gap}")
     if not open_after:
         assert goal.time is not None  # for mypy: a window closes
+        closes = int(np.searchsorted(traj.t, goal.time[1] + TIME_TOLERANCE, side="right")) - 1
+        if region is not None and region.reachable and closes >= 0 and float(traj.s[closes]) >= region.s_in:
+            # far enough along when the window closes, but beside the region: the lateral plan's miss
+            return _unreachable(
+                GoalReason.MISSED, f"beside the region when the window closes (t = {goal.time[1]:.1f} s)"
+            )
         return _unreachable(GoalReason.TOO_FAR, f"not inside the region by t = {goal.time[1]:.1f} s")
     return _on_the_way("the horizon ends before the region")
 

@@ -92,7 +92,8 @@ class Goal(RequestModel):
         None, description="Time window [t_min, t_max] [s] from now (the ego's state is at t = 0)."
     )
     speed: tuple[GoalSpeed, GoalSpeed] | None = Field(
-        None, description="Speed range [v_min, v_max] [m/s]; a range reaching 0 means: stop inside."
+        None,
+        description="Speed range [v_min, v_max] [m/s]; a range from 0 to below 1 m/s means: stop inside.",
     )
 
     @field_validator("time", "speed")

@@ -327,3 +327,55 @@ def test_in_closed_loop_a_stop_inside_stays_put_and_a_window_is_met() -> None:
     t, x, v = _closed_loop(hurry, 8.05)
     inside_then = (x >= EGO_X + 95.0) & (x <= EGO_X + 115.0) & (t >= 6.0 - 1e-9)
     assert inside_then.any() and v.max() <= 16.0 + 1e-3
+
+
+def test_a_speed_range_from_0_reaching_higher_allows_a_stop_but_does_not_ask_for_one(model: str) -> None:
+    # a long region 30–200 m ahead, to be inside 10–10.5 s from now at 0–9 m/s: at its target of 10 m/s
+    # the vehicle drives in and on (it is inside then at a speed in the range after easing to 9 m/s)
+    region = box(EGO_X + 30.0, EGO_X + 200.0, -1.75, 1.75)
+    goal = Goal(region, time=(10.0, 10.5), speed=(0.0, 9.0))
+    problem = straight_problem(goal, model=model)
+    setup = goal_setup(build_reference(problem.reference_line), problem)
+    assert setup is not None and not setup.stops_inside
+    result = planned(problem)
+    assert result.status == "ok", result.message
+    assert result.trajectory.v.min() > 5.0  # it does not stop at the region's entry
+    report = result.diagnostics.goal
+    assert report is not None and report.status is GoalStatus.ON_THE_WAY, report
+    # a range from 0 to below the stop speed is a stop
+    slow = straight_problem(Goal(region, speed=(0.0, 0.5 * DEFAULT_CONFIG.goal.stop_speed)), model=model)
+    slow_setup = goal_setup(build_reference(slow.reference_line), slow)
+    assert slow_setup is not None and slow_setup.stops_inside
+
+
+def test_a_stop_inside_keeps_its_approach_when_the_window_lies_beyond_the_horizon() -> None:
+    # stop 50–60 m ahead, inside 20–21 s from now: the window asks nothing within the 8 s horizon, the
+    # stop's own approach bound stays (without it the profile may dawdle and stop short of the region)
+    region = box(EGO_X + 50.0, EGO_X + 60.0, -1.75, 1.75)
+    problem = straight_problem(Goal(region, time=(20.0, 21.0), speed=(0.0, 0.0)))
+    ref, start, setup, _ = _stages(problem)
+    s = np.linspace(start.s, start.s + 150.0, 301)
+    path = frenet_path(ref, s, 0 * s, 0 * s, 0 * s)
+    aim = speed_aim(setup, path, problem)
+    assert aim is not None and aim.lower is not None
+    k = np.flatnonzero(np.isfinite(aim.lower))
+    assert k.size == 1 and aim.lower[k[0]] == aim.stop
+
+
+def test_offsets_blend_into_a_region_beyond_a_parked_car_after_the_car() -> None:
+    # a car parked in the right of the lane 27–32 m ahead; the candidate passes it on the left (d = 2.3)
+    # and stays at d = 2, beside the region (the lane up to d = 1, from 40 m ahead on): the blend into
+    # the region (1.5 s at 10 m/s before it) would begin on the car, so it begins after the car
+    region = box(EGO_X + 40.0, EGO_X + 115.0, -1.75, 1.0)
+    car = PolygonObstacle("parked", np.array([[37.0, -1.75], [42.0, -1.75], [42.0, 0.6], [37.0, 0.6]]))
+    problem = replace(straight_problem(Goal(region, time=(3.5, 4.5))), obstacles=(car,))
+    ref, _, setup, _ = _stages(problem)
+    s = np.linspace(EGO_X, EGO_X + 120.0, 241)
+    d = np.interp(s, [EGO_X, 30.0, 36.0, 43.0, 48.0], [0.0, 0.0, 2.3, 2.3, 2.0])
+    boxes = frenet_boxes(ref, static_shapes(problem))
+    moved = toward_region(setup, ref, s, d, boxes, problem)
+    assert moved is not d
+    by_car = s <= 42.0 + 0.5 * problem.vehicle.length
+    assert np.array_equal(moved[by_car], d[by_car])  # not moved where it passes the car
+    over = (s >= EGO_X + 40.0) & (s <= EGO_X + 110.0)
+    assert np.all(moved[over] < 1.0)  # inside (the aim's margin in, scaled against the QP's pull)

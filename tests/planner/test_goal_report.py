@@ -167,3 +167,17 @@ def test_a_car_is_judged_at_its_centre_not_its_rear_axle() -> None:
     rear_x = result.trajectory.x - 1.35 * np.cos(result.trajectory.heading)
     assert not (rear_x[-1] >= EGO_X + 40.0 and rear_x[-1] <= EGO_X + 41.0)
     assert EGO_X + 40.0 <= result.trajectory.x[-1] <= EGO_X + 41.0
+
+
+def test_beside_the_region_when_the_window_closes_is_missed_not_too_far() -> None:
+    # the region's left half of the lane, 40–70 m ahead, filled by a parked car: the vehicle drives past it
+    # in the window (at 10 m/s it is 40–50 m on at 4–5 s) but cannot get in: missed, not too far
+    region = box(EGO_X + 40.0, EGO_X + 70.0, 1.2, 3.5)
+    car = PolygonObstacle("parked", np.array([[45.0, 1.0], [85.0, 1.0], [85.0, 3.4], [45.0, 3.4]]))
+    problem = replace(straight_problem(Goal(region, time=(4.0, 5.0))), obstacles=(car,))
+    result = plan(problem)
+    assert result.status == "ok", result.message
+    assert not meets(problem.goal, result.trajectory).any()  # type: ignore[arg-type]
+    report = result.diagnostics.goal
+    assert report is not None and report.status is GoalStatus.UNREACHABLE
+    assert report.reason == "missed", report.message
