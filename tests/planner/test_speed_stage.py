@@ -11,7 +11,7 @@ import pytest
 from scenario_roads import Road, arc_piece, follow_prediction, straight_piece
 from traffic import car
 
-from planner import pipeline
+from planner import drive
 from planner.candidates import path_length
 from planner.config import DEFAULT_CONFIG
 from planner.pipeline import plan
@@ -221,7 +221,7 @@ def test_behind_a_follower_bound_the_profile_brakes_later_with_the_emergency_jer
         stages.append(speed_stage(*args, **kwargs))
         return stages[-1]
 
-    monkeypatch.setattr(pipeline, "speed_stage", kept)
+    monkeypatch.setattr(drive, "speed_stage", kept)
     harder, soft = plan(problem), plan(problem, comfortable)
     assert len(stages) == 2
     later, early = stages[0].solved, stages[1].solved

@@ -116,7 +116,7 @@ def test_evaluate_on_a_local_ray_gives_the_rows_of_one_process(tmp_path: Path) -
     here = _rows(tmp_path / "here.csv")
     assert list(on_ray) == list(THREE)
     assert on_ray == here
-    assert [on_ray[n]["termination"] for n in THREE] == ["collision", "goal", "timeout"]
+    assert [on_ray[n]["termination"] for n in THREE] == ["collision", "goal", "goal"]
     assert all(r["status"] == "done" and r["judge"] == "commonroad" for r in on_ray.values())
     summary = (out / "summary.md").read_text()
     assert "Ray start-up" in summary and "| ZAM_Over-1_1.json |" in summary
