@@ -43,16 +43,37 @@ from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Path
 
 
+#: the last problem asked about and its obstacles' :func:`static_flags` (a plan asks several times; the
+#: problem is frozen, so its identity is the key; one tuple, replaced whole: safe across threads)
+_LAST_FLAGS: tuple[PlanningProblem | None, tuple[bool, ...]] = (None, ())
+
+
+def static_flags(problem: PlanningProblem) -> tuple[bool, ...]:
+    """Whether each of the problem's obstacles stays put over the horizon (:func:`is_static`), in order."""
+    global _LAST_FLAGS
+    last, flags = _LAST_FLAGS
+    if last is problem:
+        return flags
+    horizon = problem.options.horizon_time
+    flags = tuple(is_static(ob, horizon) for ob in problem.obstacles)
+    _LAST_FLAGS = (problem, flags)
+    return flags
+
+
 def static_shapes(problem: PlanningProblem) -> list[tuple[str, BaseGeometry]]:
     """Outlines of the obstacles that stay put over the horizon (parked cars given as predictions too)."""
-    horizon = problem.options.horizon_time
-    return [(ob.id, obstacle_shape(ob)) for ob in problem.obstacles if is_static(ob, horizon)]
+    flags = static_flags(problem)
+    return [(ob.id, obstacle_shape(ob)) for ob, static in zip(problem.obstacles, flags, strict=True) if static]
 
 
 def moving_obstacles(problem: PlanningProblem) -> list[DynamicObstacle]:
     """The obstacles that move over the horizon: those the speed profile keeps clear of."""
-    horizon = problem.options.horizon_time
-    return [ob for ob in problem.obstacles if isinstance(ob, DynamicObstacle) and not is_static(ob, horizon)]
+    flags = static_flags(problem)
+    return [
+        ob
+        for ob, static in zip(problem.obstacles, flags, strict=True)
+        if isinstance(ob, DynamicObstacle) and not static
+    ]
 
 
 @dataclass(frozen=True)
