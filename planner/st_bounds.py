@@ -132,19 +132,22 @@ class Along:
         tree = cKDTree(np.column_stack((path.x, path.y)))
         return cls(ref, path, tree, extent, config.lateral.knot_spacing)
 
-    def near(self, movers: list[DynamicObstacle], t: FloatArray) -> tuple[NDArray[np.intp], list[FloatArray]]:
-        """Which of ``movers`` come near the path at some time of ``t`` [s], and every mover's states then
-        (shape (T, 3) each). "Near": within twice the reach of the footprint (its half-diagonal) and of
-        the largest obstacle, plus a knot spacing (generous: a Frenet box may be larger than the shape it
-        bounds)."""
+    def near(
+        self, movers: list[DynamicObstacle], t: FloatArray
+    ) -> tuple[NDArray[np.intp], list[FloatArray], NDArray[np.bool_]]:
+        """Which of ``movers`` come near the path at some time of ``t`` [s], every mover's states then
+        (shape (T, 3) each) and when each is near (shape (len(movers), T)). "Near": within twice the
+        reach of the footprint (its half-diagonal) and of the largest obstacle, plus a knot spacing
+        (generous: a Frenet box may be larger than the shape it bounds); a box not near cannot meet the
+        footprint, so it need not be mapped (:func:`frenet_extents`' ``mapped``)."""
         states = [prediction_at(ob, t) for ob in movers]
         ext = self.extent
         own = float(np.hypot(max(ext.front[0], ext.back[0]), max(ext.left[0], ext.right[0])))
         largest = max(float(np.hypot(ob.length, ob.width)) for ob in movers)
         reach = 2.0 * (own + largest) + self.knot_spacing
         dist, _ = self.tree.query(np.concatenate(states)[:, :2], distance_upper_bound=reach)  # one query
-        near = np.flatnonzero(np.isfinite(dist).reshape(len(movers), -1).any(axis=1))
-        return near, states
+        close = np.isfinite(dist).reshape(len(movers), -1)
+        return np.flatnonzero(close.any(axis=1)), states, close
 
     def meets(self, boxes: tuple[FloatArray, FloatArray, FloatArray, FloatArray]) -> NDArray[np.bool_]:
         """Whether the footprint on each knot meets each obstacle's box at each time: ``boxes`` are
@@ -161,10 +164,12 @@ def space_time_bound(
     footprint stays clear of every moving obstacle's box (follow or yield). Obstacles behind the ego
     at the start are not followed: one coming from behind is the follower's to avoid (braking for it as
     it overtakes would invite a rear-end collision)."""
-    near, states = along.near(movers, t)
+    near, states, close = along.near(movers, t)
     if near.size == 0:
         return None
-    boxes = frenet_extents(along.ref, [movers[k] for k in near], [states[k] for k in near])  # (K, T) each
+    mapped = close[near]
+    mapped[:, 0] = True  # where each is at the start: ahead of the ego or not
+    boxes = frenet_extents(along.ref, [movers[k] for k in near], [states[k] for k in near], mapped)  # (K, T)
     s_min, s_max = boxes[0], boxes[1]
     ahead = (0.5 * (s_min[:, :1] + s_max[:, :1]) > start_s) | (s_min[:, :1] > start_s)
     hit = along.meets(boxes)
@@ -176,18 +181,31 @@ def space_time_bound(
 
 
 def frenet_extents(
-    ref: ReferenceLine, movers: list[DynamicObstacle], states: list[FloatArray]
+    ref: ReferenceLine,
+    movers: list[DynamicObstacle],
+    states: list[FloatArray],
+    mapped: NDArray[np.bool_] | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """``(s_min, s_max, d_min, d_max)`` [m], each shape (K, T): the Frenet boxes of the K obstacles at their
-    states ``states[k]`` (shape (T, 3)), from corners and edge midpoints mapped by TransF-κ in one call."""
+    states ``states[k]`` (shape (T, 3)), from corners and edge midpoints mapped by TransF-κ in one call;
+    only where ``mapped`` (shape (K, T); None: everywhere) says so, NaN elsewhere (a NaN box meets
+    nothing: :func:`planner.collision.boxes_overlap`)."""
     outlines = []
     for ob, st in zip(movers, states, strict=True):
         corners = box_corners(st[:, 0], st[:, 1], st[:, 2], ob.length, ob.width)  # (T, 4, 2)
         outlines.append(np.concatenate((corners, 0.5 * (corners + np.roll(corners, -1, axis=1))), axis=1))
     pts = np.stack(outlines)  # (K, T, 8, 2)
-    fr = to_frenet(ref, pts.reshape(-1, 2))
-    s_box = fr.s.reshape(pts.shape[:3])
-    d_box = fr.d.reshape(pts.shape[:3])
+    if mapped is None or bool(mapped.all()):
+        fr = to_frenet(ref, pts.reshape(-1, 2))
+        s_box = fr.s.reshape(pts.shape[:3])
+        d_box = fr.d.reshape(pts.shape[:3])
+    else:
+        s_box = np.full(pts.shape[:3], np.nan)
+        d_box = np.full(pts.shape[:3], np.nan)
+        if mapped.any():
+            fr = to_frenet(ref, pts[mapped].reshape(-1, 2))
+            s_box[mapped] = fr.s.reshape(-1, pts.shape[2])
+            d_box[mapped] = fr.d.reshape(-1, pts.shape[2])
     return s_box.min(axis=2), s_box.max(axis=2), d_box.min(axis=2), d_box.max(axis=2)
 
 
@@ -227,11 +245,11 @@ def follower_bound(
     """
     window = int(np.ceil(headway / float(t[1] - t[0]) - 1e-9))  # steps of the headway; t: ≥ 2 times
     t = t[0] + (t[1] - t[0]) * np.arange(t.size + window)  # the knots and the headway beyond them
-    near, states = along.near(movers, t)
+    near, states, close = along.near(movers, t)
     chosen = near[_behind(along.ref, [movers[k] for k in near], start_s)]
     if chosen.size == 0:
         return None
-    boxes = frenet_extents(along.ref, [movers[k] for k in chosen], [states[k] for k in chosen])
+    boxes = frenet_extents(along.ref, [movers[k] for k in chosen], [states[k] for k in chosen], close[chosen])
     s_max = boxes[1]
     hit = along.meets(boxes)  # (K, T, knots)
     meets = hit.any(axis=2)  # (K, T)
