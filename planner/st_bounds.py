@@ -19,7 +19,7 @@ dense traffic mapping the others would be most of the stage's cost.
 from __future__ import annotations
 
 from collections.abc import Collection
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -42,7 +42,6 @@ from planner.problem import DynamicObstacle, PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Path
 
-
 #: the last problem asked about and its obstacles' :func:`static_flags` (a plan asks several times; the
 #: problem is frozen, so its identity is the key; one tuple, replaced whole: safe across threads)
 _LAST_FLAGS: tuple[PlanningProblem | None, tuple[bool, ...]] = (None, ())
@@ -62,8 +61,8 @@ def static_flags(problem: PlanningProblem) -> tuple[bool, ...]:
 
 def static_shapes(problem: PlanningProblem) -> list[tuple[str, BaseGeometry]]:
     """Outlines of the obstacles that stay put over the horizon (parked cars given as predictions too)."""
-    flags = static_flags(problem)
-    return [(ob.id, obstacle_shape(ob)) for ob, static in zip(problem.obstacles, flags, strict=True) if static]
+    pairs = zip(problem.obstacles, static_flags(problem), strict=True)
+    return [(ob.id, obstacle_shape(ob)) for ob, static in pairs if static]
 
 
 def moving_obstacles(problem: PlanningProblem) -> list[DynamicObstacle]:
@@ -101,13 +100,19 @@ def space_time_bounds(
     if not movers:
         return SpaceTimeBounds(None, None)
     speed, gap = config.speed, config.stop_gap
-    along = Along.of(ref, path, problem, config)
+    # "near the path" measured with the largest of all the movers, whichever of them a bound maps
+    largest = max(float(np.hypot(ob.length, ob.width)) for ob in movers)
+    along = replace(Along.of(ref, path, problem, config), largest=largest)
+    # Each bound maps only its own (the same split both make themselves: :func:`_behind`): the leaders
+    # ahead of the ego at the start, the followers behind it.
+    behind = _behind(ref, movers, start_s)
     # where an obstacle was a headway ago, not where it is: a gap that grows with its speed
-    leaders = [ob for ob in movers if ob.id not in passing] if passing else movers
-    upper = (
-        space_time_bound(along, leaders, np.maximum(t - speed.headway, 0.0), start_s) if leaders else None
+    leaders = [ob for ob, back in zip(movers, behind, strict=True) if not back and ob.id not in passing]
+    upper = space_time_bound(along, leaders, np.maximum(t - speed.headway, 0.0), start_s) if leaders else None
+    rear = [ob for ob, back in zip(movers, behind, strict=True) if back]
+    lower = (
+        follower_bound(along, rear, t, speed.follower_headway, start_s, problem.ego.speed) if rear else None
     )
-    lower = follower_bound(along, movers, t, speed.follower_headway, start_s, problem.ego.speed)
     return SpaceTimeBounds(
         upper=None if upper is None else np.maximum(upper - gap, 0.0),
         lower=None if lower is None else lower + gap,
@@ -125,6 +130,8 @@ class Along:
     tree: cKDTree
     extent: Extent
     knot_spacing: float
+    #: the largest obstacle's diagonal [m] that :meth:`near` reaches for (None: the largest it is given)
+    largest: float | None = None
 
     @classmethod
     def of(cls, ref: ReferenceLine, path: Path, problem: PlanningProblem, config: PlannerConfig) -> Along:
@@ -143,7 +150,9 @@ class Along:
         states = [prediction_at(ob, t) for ob in movers]
         ext = self.extent
         own = float(np.hypot(max(ext.front[0], ext.back[0]), max(ext.left[0], ext.right[0])))
-        largest = max(float(np.hypot(ob.length, ob.width)) for ob in movers)
+        largest = self.largest
+        if largest is None:
+            largest = max(float(np.hypot(ob.length, ob.width)) for ob in movers)
         reach = 2.0 * (own + largest) + self.knot_spacing
         dist, _ = self.tree.query(np.concatenate(states)[:, :2], distance_upper_bound=reach)  # one query
         close = np.isfinite(dist).reshape(len(movers), -1)
@@ -164,12 +173,14 @@ def space_time_bound(
     footprint stays clear of every moving obstacle's box (follow or yield). Obstacles behind the ego
     at the start are not followed: one coming from behind is the follower's to avoid (braking for it as
     it overtakes would invite a rear-end collision)."""
-    near, states, close = along.near(movers, t)
+    times, at = np.unique(t, return_inverse=True)  # each time once (a headway ago is 0 for the first few)
+    near, states, close = along.near(movers, times)
     if near.size == 0:
         return None
     mapped = close[near]
-    mapped[:, 0] = True  # where each is at the start: ahead of the ego or not
-    boxes = frenet_extents(along.ref, [movers[k] for k in near], [states[k] for k in near], mapped)  # (K, T)
+    mapped[:, 0] = True  # where each is at the first time: ahead of the ego or not
+    extents = frenet_extents(along.ref, [movers[k] for k in near], [states[k] for k in near], mapped)
+    boxes = (extents[0][:, at], extents[1][:, at], extents[2][:, at], extents[3][:, at])  # (K, T) each
     s_min, s_max = boxes[0], boxes[1]
     ahead = (0.5 * (s_min[:, :1] + s_max[:, :1]) > start_s) | (s_min[:, :1] > start_s)
     hit = along.meets(boxes)
