@@ -4,9 +4,12 @@ in them (asserts nothing).
 
 The loops are :mod:`bench.commonroad`'s (its loading, goals and vehicles: ``run_one``), a replan every
 0.1 s, after one plan to warm up (the first plan of a process builds the speed problem; a plan process
-of the service does that at its start). Every ``plan`` call the loop makes is recorded — its wall time
-in this process, its answer's status and ``diagnostics`` (stage times, the lateral QP's and the speed
-SQP's infos), the obstacles it was given — and so is every solver call inside it
+of the service does that at its start). When a scene's loop starts, what is alive leaves the cyclic
+garbage collector's care (``gc.freeze()``), as a plan process's heap does after its warm-up: its full
+collections would otherwise walk the loop's own objects inside a plan (``--no-freeze``: they do).
+Every ``plan`` call the loop makes is recorded — its wall time in this process, its answer's status
+and ``diagnostics`` (stage times, the lateral QP's and the speed SQP's infos), the obstacles it was
+given — and so is every solver call inside it
 (``LateralQPSolver.solve``: calls, OSQP iterations, what the second backend did; ``SpeedSolver.solve``:
 calls, QPs, HPIPM iterations). The counts do not depend on the machine's load: the same request gets
 the same answer and the same counts. Beside the wall time, each plan's CPU time (of the thread that
