@@ -220,14 +220,29 @@ def frenet_extents(
     return s_box.min(axis=2), s_box.max(axis=2), d_box.min(axis=2), d_box.max(axis=2)
 
 
+#: the last reference and ego position asked about, and the verdicts of :func:`_behind` there, by
+#: obstacle (its identity; the obstacle kept beside it): a plan asks for them several times (the
+#: candidates' reach, both space-time bounds, the fallback). Replaced whole for another reference or
+#: position; each verdict depends on its obstacle alone.
+_LAST_BEHIND: tuple[ReferenceLine | None, float, dict[int, tuple[DynamicObstacle, bool]]] = (None, 0.0, {})
+
+
 def _behind(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float) -> NDArray[np.bool_]:
     """Which of ``movers`` are behind the ego at the start: the middle of their Frenet box at ``t = 0`` at
     or behind the ego's ``start_s`` [m] — exactly those :func:`space_time_bound` does not follow."""
+    global _LAST_BEHIND
     if not movers:
         return np.zeros(0, dtype=bool)
-    s_min, s_max, _, _ = frenet_extents(ref, movers, [prediction_at(ob, np.zeros(1)) for ob in movers])
-    ahead = (0.5 * (s_min[:, 0] + s_max[:, 0]) > start_s) | (s_min[:, 0] > start_s)
-    return np.asarray(~ahead, dtype=bool)
+    last_ref, last_s, known = _LAST_BEHIND
+    if last_ref is not ref or last_s != start_s:
+        known = {}
+        _LAST_BEHIND = (ref, start_s, known)
+    new = [ob for ob in movers if known.get(id(ob), (None, False))[0] is not ob]
+    if new:
+        s_min, s_max, _, _ = frenet_extents(ref, new, [prediction_at(ob, np.zeros(1)) for ob in new])
+        ahead = (0.5 * (s_min[:, 0] + s_max[:, 0]) > start_s) | (s_min[:, 0] > start_s)
+        known.update((id(ob), (ob, not bool(front))) for ob, front in zip(new, ahead, strict=True))
+    return np.array([known[id(ob)][1] for ob in movers], dtype=bool)
 
 
 def followers(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float) -> list[DynamicObstacle]:

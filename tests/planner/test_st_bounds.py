@@ -237,3 +237,15 @@ def test_boxes_mapped_only_near_the_path_give_the_same_bounds() -> None:
     whole = frenet_extents(REF, [crossing], [prediction_at(crossing, KNOTS)])
     for part, every in zip(extents, whole, strict=True):
         assert np.array_equal(part[:, :40], every[:, :40]) and np.isnan(part[:, 40:]).all()
+
+
+def test_who_is_behind_is_the_same_asked_for_any_subset_or_another_start() -> None:
+    """The verdicts kept for a reference and a start are each obstacle's own: a subset, another order or
+    another start gets what it would get afresh."""
+    movers = [car("behind", 10.0, 16.0), car("leader", 60.0, 8.0), car("far", 0.0, 5.0, y=3.0)]
+    assert [ob.id for ob in followers(REF, movers, 30.0)] == ["behind", "far"]
+    assert [ob.id for ob in followers(REF, movers[::-1], 30.0)] == ["far", "behind"]
+    assert [ob.id for ob in followers(REF, movers[1:], 30.0)] == ["far"]
+    assert [ob.id for ob in followers(REF, movers, 5.0)] == ["far"]  # the ego behind the first car
+    assert [ob.id for ob in followers(REF, movers, 70.0)] == ["behind", "leader", "far"]
+    assert [ob.id for ob in followers(REF, movers, 30.0)] == ["behind", "far"]
