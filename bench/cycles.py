@@ -4,9 +4,12 @@ in them (asserts nothing).
 
 The loops are :mod:`bench.commonroad`'s (its loading, goals and vehicles: ``run_one``), a replan every
 0.1 s, after one plan to warm up (the first plan of a process builds the speed problem; a plan process
-of the service does that at its start). Every ``plan`` call the loop makes is recorded — its wall time
-in this process, its answer's status and ``diagnostics`` (stage times, the lateral QP's and the speed
-SQP's infos), the obstacles it was given — and so is every solver call inside it
+of the service does that at its start). When a scene's loop starts, what is alive leaves the cyclic
+garbage collector's care (``gc.freeze()``), as a plan process's heap does after its warm-up: its full
+collections would otherwise walk the loop's own objects inside a plan (``--no-freeze``: they do).
+Every ``plan`` call the loop makes is recorded — its wall time in this process, its answer's status
+and ``diagnostics`` (stage times, the lateral QP's and the speed SQP's infos), the obstacles it was
+given — and so is every solver call inside it
 (``LateralQPSolver.solve``: calls, OSQP iterations, what the second backend did; ``SpeedSolver.solve``:
 calls, QPs, HPIPM iterations). The counts do not depend on the machine's load: the same request gets
 the same answer and the same counts. Beside the wall time, each plan's CPU time (of the thread that
@@ -30,6 +33,7 @@ difference of two callgrind runs with different N, divided by the difference of 
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib.util
 import json
 import os
@@ -120,8 +124,16 @@ class Recorder:
     problems: list[PlanningProblem] = field(default_factory=list)
     counts: Counts = field(default_factory=Counts)
     keep_problems: bool = False
+    #: freeze the heap out of the cyclic GC when a scene's loop starts (``--no-freeze``: not)
+    freeze: bool = True
 
     def plan(self, problem: PlanningProblem, *args: Any, **kwargs: Any) -> Any:
+        if self.cycle == 0 and self.freeze:
+            # A scene's loop starts: what is alive (the loaded scene, the loop's state) leaves the cyclic
+            # GC, as a plan process's heap does after its warm-up (app.jobs.warm_up); the loop's objects
+            # would not be in a plan process's heap at all.
+            gc.collect()
+            gc.freeze()
         self.counts = Counts()
         t0, c0 = time.perf_counter(), time.thread_time()
         try:
@@ -203,12 +215,16 @@ def recording(recorder: Recorder) -> Iterator[Recorder]:
 
 
 def run(
-    names: list[str] | None, vehicle: str, duration: float, keep_problems: bool = False
+    names: list[str] | None,
+    vehicle: str,
+    duration: float,
+    keep_problems: bool = False,
+    freeze: bool = True,
 ) -> tuple[Recorder, dict[str, Any]]:
     """Every scene's closed loop (``names``: file stems; None: all); the recorder and per-scene results."""
     cr = _commonroad_bench()
     paths = cr.scene_paths(only=names)
-    recorder = Recorder(keep_problems=keep_problems)
+    recorder = Recorder(keep_problems=keep_problems, freeze=freeze)
     scenes: dict[str, Any] = {}
     if paths:  # warm up as a plan process does at start: the first plan builds the speed problem
         plan(cr.prepare(paths[0], cr.Settings(vehicle=vehicle, duration=duration)).problem)
@@ -412,6 +428,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--compare", nargs=2, type=Path, default=None, help="two --json files")
     parser.add_argument("--replay", type=Path, default=None, help="a request to plan (see --times)")
     parser.add_argument("--times", type=int, default=1, help="plans of --replay after the warm-up")
+    parser.add_argument(
+        "--no-freeze", action="store_true", help="leave the heap in the cyclic GC's care (see Recorder)"
+    )
     args = parser.parse_args(argv)
 
     if args.compare is not None:
@@ -422,7 +441,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     load0 = os.getloadavg()
     t0 = time.perf_counter()
-    recorder, scenes = run(args.only, args.vehicle, args.duration, keep_problems=args.dump is not None)
+    recorder, scenes = run(
+        args.only, args.vehicle, args.duration, keep_problems=args.dump is not None, freeze=not args.no_freeze
+    )
     total = time.perf_counter() - t0
     load1 = os.getloadavg()
     print(

@@ -66,8 +66,16 @@ def prediction_at(obstacle: DynamicObstacle, t: FloatArray) -> FloatArray:
     pred = obstacle.prediction
     x = np.interp(t, pred[:, 0], pred[:, 1])
     y = np.interp(t, pred[:, 0], pred[:, 2])
-    h = np.interp(t, pred[:, 0], np.unwrap(pred[:, 3]))
+    h = np.interp(t, pred[:, 0], _unwrapped(pred[:, 3]))
     return np.column_stack((x, y, h))
+
+
+def _unwrapped(heading: FloatArray) -> FloatArray:
+    """``np.unwrap(heading)``; the headings themselves where no step reaches π (the common case, where
+    ``np.unwrap`` adds only zeros: its Python overhead is most of a prediction's interpolation)."""
+    if heading.shape[0] < 2 or bool(np.all(np.abs(np.diff(heading)) < np.pi)):
+        return heading
+    return np.asarray(np.unwrap(heading))
 
 
 def is_static(obstacle: Obstacle, horizon: float) -> bool:
@@ -76,8 +84,11 @@ def is_static(obstacle: Obstacle, horizon: float) -> bool:
         return True
     pred = obstacle.prediction
     inside = pred[(pred[:, 0] >= 0.0) & (pred[:, 0] <= horizon)]
-    states = np.vstack((prediction_at(obstacle, np.array([0.0, horizon]))[:, :2], inside[:, 1:3]))
-    return bool(np.max(np.linalg.norm(states - states[0], axis=1)) < STATIC_MOTION)
+    ends = np.array([0.0, horizon])  # the positions of prediction_at, without the heading it needs not
+    x = np.concatenate((np.interp(ends, pred[:, 0], pred[:, 1]), inside[:, 1]))
+    y = np.concatenate((np.interp(ends, pred[:, 0], pred[:, 2]), inside[:, 2]))
+    dx, dy = x - x[0], y - y[0]
+    return bool(np.max(np.sqrt(dx * dx + dy * dy)) < STATIC_MOTION)
 
 
 def obstacle_shape(obstacle: Obstacle, t: float = 0.0) -> BaseGeometry:

@@ -21,6 +21,7 @@ angles of the input polyline. ``s`` of a sample is its arc length along the spli
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -178,12 +179,46 @@ def build_reference(
 ) -> ReferenceLine:
     """Fit, measure and uniformly resample a user polyline (driving order) into a :class:`ReferenceLine`.
 
+    The last few references built are kept, keyed by the polyline's exact values and the arguments: a
+    closed loop sends the same polyline every cycle. A reference is a pure function of them, its arrays
+    read-only, so the kept one is the one that would be built (errors are raised every time).
+
     Args:
         points: the polyline, shape (n, 2) [m], n ≥ 2 distinct points.
         max_spacing: largest sample spacing Δ [m].
         angle_per_sample: largest heading change per sample [rad]; Δ ≤ angle_per_sample / κ_max.
         field_name: name of the input field, used in error messages.
     """
+    try:
+        arr = np.ascontiguousarray(points, dtype=np.float64)
+    except (TypeError, ValueError):  # not numbers: the uncached path names the field
+        arr = None
+    if arr is None or arr.ndim != 2 or arr.size > _CACHED_POINTS:
+        return _build_reference(
+            points, max_spacing=max_spacing, angle_per_sample=angle_per_sample, field_name=field_name
+        )
+    return _kept_reference(arr.tobytes(), arr.shape, float(max_spacing), float(angle_per_sample), field_name)
+
+
+#: polylines of at most this many numbers are kept by :func:`build_reference`
+_CACHED_POINTS = 200_000
+
+
+@functools.lru_cache(maxsize=4)
+def _kept_reference(
+    values: bytes, shape: tuple[int, ...], max_spacing: float, angle_per_sample: float, field_name: str
+) -> ReferenceLine:
+    """:func:`_build_reference` of the polyline whose float64 values are ``values`` in ``shape``."""
+    points = np.frombuffer(values, dtype=np.float64).reshape(shape)
+    return _build_reference(
+        points, max_spacing=max_spacing, angle_per_sample=angle_per_sample, field_name=field_name
+    )
+
+
+def _build_reference(
+    points: ArrayLike, *, max_spacing: float, angle_per_sample: float, field_name: str
+) -> ReferenceLine:
+    """:func:`build_reference`, built."""
     if not (np.isfinite(max_spacing) and max_spacing > 0):
         raise ValueError("max_spacing must be positive")
     pts, index = clean_polyline(points, field_name=field_name)

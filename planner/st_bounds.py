@@ -19,7 +19,7 @@ dense traffic mapping the others would be most of the stage's cost.
 from __future__ import annotations
 
 from collections.abc import Collection
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -42,17 +42,37 @@ from planner.problem import DynamicObstacle, PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Path
 
+#: the last problem asked about and its obstacles' :func:`static_flags` (a plan asks several times; the
+#: problem is frozen, so its identity is the key; one tuple, replaced whole: safe across threads)
+_LAST_FLAGS: tuple[PlanningProblem | None, tuple[bool, ...]] = (None, ())
+
+
+def static_flags(problem: PlanningProblem) -> tuple[bool, ...]:
+    """Whether each of the problem's obstacles stays put over the horizon (:func:`is_static`), in order."""
+    global _LAST_FLAGS
+    last, flags = _LAST_FLAGS
+    if last is problem:
+        return flags
+    horizon = problem.options.horizon_time
+    flags = tuple(is_static(ob, horizon) for ob in problem.obstacles)
+    _LAST_FLAGS = (problem, flags)
+    return flags
+
 
 def static_shapes(problem: PlanningProblem) -> list[tuple[str, BaseGeometry]]:
     """Outlines of the obstacles that stay put over the horizon (parked cars given as predictions too)."""
-    horizon = problem.options.horizon_time
-    return [(ob.id, obstacle_shape(ob)) for ob in problem.obstacles if is_static(ob, horizon)]
+    pairs = zip(problem.obstacles, static_flags(problem), strict=True)
+    return [(ob.id, obstacle_shape(ob)) for ob, static in pairs if static]
 
 
 def moving_obstacles(problem: PlanningProblem) -> list[DynamicObstacle]:
     """The obstacles that move over the horizon: those the speed profile keeps clear of."""
-    horizon = problem.options.horizon_time
-    return [ob for ob in problem.obstacles if isinstance(ob, DynamicObstacle) and not is_static(ob, horizon)]
+    flags = static_flags(problem)
+    return [
+        ob
+        for ob, static in zip(problem.obstacles, flags, strict=True)
+        if isinstance(ob, DynamicObstacle) and not static
+    ]
 
 
 @dataclass(frozen=True)
@@ -80,13 +100,19 @@ def space_time_bounds(
     if not movers:
         return SpaceTimeBounds(None, None)
     speed, gap = config.speed, config.stop_gap
-    along = Along.of(ref, path, problem, config)
+    # "near the path" measured with the largest of all the movers, whichever of them a bound maps
+    largest = max(float(np.hypot(ob.length, ob.width)) for ob in movers)
+    along = replace(Along.of(ref, path, problem, config), largest=largest)
+    # Each bound maps only its own (the same split both make themselves: :func:`_behind`): the leaders
+    # ahead of the ego at the start, the followers behind it.
+    behind = _behind(ref, movers, start_s)
     # where an obstacle was a headway ago, not where it is: a gap that grows with its speed
-    leaders = [ob for ob in movers if ob.id not in passing] if passing else movers
-    upper = (
-        space_time_bound(along, leaders, np.maximum(t - speed.headway, 0.0), start_s) if leaders else None
+    leaders = [ob for ob, back in zip(movers, behind, strict=True) if not back and ob.id not in passing]
+    upper = space_time_bound(along, leaders, np.maximum(t - speed.headway, 0.0), start_s) if leaders else None
+    rear = [ob for ob, back in zip(movers, behind, strict=True) if back]
+    lower = (
+        follower_bound(along, rear, t, speed.follower_headway, start_s, problem.ego.speed) if rear else None
     )
-    lower = follower_bound(along, movers, t, speed.follower_headway, start_s, problem.ego.speed)
     return SpaceTimeBounds(
         upper=None if upper is None else np.maximum(upper - gap, 0.0),
         lower=None if lower is None else lower + gap,
@@ -104,6 +130,8 @@ class Along:
     tree: cKDTree
     extent: Extent
     knot_spacing: float
+    #: the largest obstacle's diagonal [m] that :meth:`near` reaches for (None: the largest it is given)
+    largest: float | None = None
 
     @classmethod
     def of(cls, ref: ReferenceLine, path: Path, problem: PlanningProblem, config: PlannerConfig) -> Along:
@@ -111,19 +139,24 @@ class Along:
         tree = cKDTree(np.column_stack((path.x, path.y)))
         return cls(ref, path, tree, extent, config.lateral.knot_spacing)
 
-    def near(self, movers: list[DynamicObstacle], t: FloatArray) -> tuple[NDArray[np.intp], list[FloatArray]]:
-        """Which of ``movers`` come near the path at some time of ``t`` [s], and every mover's states then
-        (shape (T, 3) each). "Near": within twice the reach of the footprint (its half-diagonal) and of
-        the largest obstacle, plus a knot spacing (generous: a Frenet box may be larger than the shape it
-        bounds)."""
+    def near(
+        self, movers: list[DynamicObstacle], t: FloatArray
+    ) -> tuple[NDArray[np.intp], list[FloatArray], NDArray[np.bool_]]:
+        """Which of ``movers`` come near the path at some time of ``t`` [s], every mover's states then
+        (shape (T, 3) each) and when each is near (shape (len(movers), T)). "Near": within twice the
+        reach of the footprint (its half-diagonal) and of the largest obstacle, plus a knot spacing
+        (generous: a Frenet box may be larger than the shape it bounds); a box not near cannot meet the
+        footprint, so it need not be mapped (:func:`frenet_extents`' ``mapped``)."""
         states = [prediction_at(ob, t) for ob in movers]
         ext = self.extent
         own = float(np.hypot(max(ext.front[0], ext.back[0]), max(ext.left[0], ext.right[0])))
-        largest = max(float(np.hypot(ob.length, ob.width)) for ob in movers)
+        largest = self.largest
+        if largest is None:
+            largest = max(float(np.hypot(ob.length, ob.width)) for ob in movers)
         reach = 2.0 * (own + largest) + self.knot_spacing
         dist, _ = self.tree.query(np.concatenate(states)[:, :2], distance_upper_bound=reach)  # one query
-        near = np.flatnonzero(np.isfinite(dist).reshape(len(movers), -1).any(axis=1))
-        return near, states
+        close = np.isfinite(dist).reshape(len(movers), -1)
+        return np.flatnonzero(close.any(axis=1)), states, close
 
     def meets(self, boxes: tuple[FloatArray, FloatArray, FloatArray, FloatArray]) -> NDArray[np.bool_]:
         """Whether the footprint on each knot meets each obstacle's box at each time: ``boxes`` are
@@ -140,10 +173,14 @@ def space_time_bound(
     footprint stays clear of every moving obstacle's box (follow or yield). Obstacles behind the ego
     at the start are not followed: one coming from behind is the follower's to avoid (braking for it as
     it overtakes would invite a rear-end collision)."""
-    near, states = along.near(movers, t)
+    times, at = np.unique(t, return_inverse=True)  # each time once (a headway ago is 0 for the first few)
+    near, states, close = along.near(movers, times)
     if near.size == 0:
         return None
-    boxes = frenet_extents(along.ref, [movers[k] for k in near], [states[k] for k in near])  # (K, T) each
+    mapped = close[near]
+    mapped[:, 0] = True  # where each is at the first time: ahead of the ego or not
+    extents = frenet_extents(along.ref, [movers[k] for k in near], [states[k] for k in near], mapped)
+    boxes = (extents[0][:, at], extents[1][:, at], extents[2][:, at], extents[3][:, at])  # (K, T) each
     s_min, s_max = boxes[0], boxes[1]
     ahead = (0.5 * (s_min[:, :1] + s_max[:, :1]) > start_s) | (s_min[:, :1] > start_s)
     hit = along.meets(boxes)
@@ -155,29 +192,57 @@ def space_time_bound(
 
 
 def frenet_extents(
-    ref: ReferenceLine, movers: list[DynamicObstacle], states: list[FloatArray]
+    ref: ReferenceLine,
+    movers: list[DynamicObstacle],
+    states: list[FloatArray],
+    mapped: NDArray[np.bool_] | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """``(s_min, s_max, d_min, d_max)`` [m], each shape (K, T): the Frenet boxes of the K obstacles at their
-    states ``states[k]`` (shape (T, 3)), from corners and edge midpoints mapped by TransF-κ in one call."""
+    states ``states[k]`` (shape (T, 3)), from corners and edge midpoints mapped by TransF-κ in one call;
+    only where ``mapped`` (shape (K, T); None: everywhere) says so, NaN elsewhere (a NaN box meets
+    nothing: :func:`planner.collision.boxes_overlap`)."""
     outlines = []
     for ob, st in zip(movers, states, strict=True):
         corners = box_corners(st[:, 0], st[:, 1], st[:, 2], ob.length, ob.width)  # (T, 4, 2)
         outlines.append(np.concatenate((corners, 0.5 * (corners + np.roll(corners, -1, axis=1))), axis=1))
     pts = np.stack(outlines)  # (K, T, 8, 2)
-    fr = to_frenet(ref, pts.reshape(-1, 2))
-    s_box = fr.s.reshape(pts.shape[:3])
-    d_box = fr.d.reshape(pts.shape[:3])
+    if mapped is None or bool(mapped.all()):
+        fr = to_frenet(ref, pts.reshape(-1, 2))
+        s_box = fr.s.reshape(pts.shape[:3])
+        d_box = fr.d.reshape(pts.shape[:3])
+    else:
+        s_box = np.full(pts.shape[:3], np.nan)
+        d_box = np.full(pts.shape[:3], np.nan)
+        if mapped.any():
+            fr = to_frenet(ref, pts[mapped].reshape(-1, 2))
+            s_box[mapped] = fr.s.reshape(-1, pts.shape[2])
+            d_box[mapped] = fr.d.reshape(-1, pts.shape[2])
     return s_box.min(axis=2), s_box.max(axis=2), d_box.min(axis=2), d_box.max(axis=2)
+
+
+#: the last reference and ego position asked about, and the verdicts of :func:`_behind` there, by
+#: obstacle (its identity; the obstacle kept beside it): a plan asks for them several times (the
+#: candidates' reach, both space-time bounds, the fallback). Replaced whole for another reference or
+#: position; each verdict depends on its obstacle alone.
+_LAST_BEHIND: tuple[ReferenceLine | None, float, dict[int, tuple[DynamicObstacle, bool]]] = (None, 0.0, {})
 
 
 def _behind(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float) -> NDArray[np.bool_]:
     """Which of ``movers`` are behind the ego at the start: the middle of their Frenet box at ``t = 0`` at
     or behind the ego's ``start_s`` [m] — exactly those :func:`space_time_bound` does not follow."""
+    global _LAST_BEHIND
     if not movers:
         return np.zeros(0, dtype=bool)
-    s_min, s_max, _, _ = frenet_extents(ref, movers, [prediction_at(ob, np.zeros(1)) for ob in movers])
-    ahead = (0.5 * (s_min[:, 0] + s_max[:, 0]) > start_s) | (s_min[:, 0] > start_s)
-    return np.asarray(~ahead, dtype=bool)
+    last_ref, last_s, known = _LAST_BEHIND
+    if last_ref is not ref or last_s != start_s:
+        known = {}
+        _LAST_BEHIND = (ref, start_s, known)
+    new = [ob for ob in movers if known.get(id(ob), (None, False))[0] is not ob]
+    if new:
+        s_min, s_max, _, _ = frenet_extents(ref, new, [prediction_at(ob, np.zeros(1)) for ob in new])
+        ahead = (0.5 * (s_min[:, 0] + s_max[:, 0]) > start_s) | (s_min[:, 0] > start_s)
+        known.update((id(ob), (ob, not bool(front))) for ob, front in zip(new, ahead, strict=True))
+    return np.array([known[id(ob)][1] for ob in movers], dtype=bool)
 
 
 def followers(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float) -> list[DynamicObstacle]:
@@ -206,11 +271,11 @@ def follower_bound(
     """
     window = int(np.ceil(headway / float(t[1] - t[0]) - 1e-9))  # steps of the headway; t: ≥ 2 times
     t = t[0] + (t[1] - t[0]) * np.arange(t.size + window)  # the knots and the headway beyond them
-    near, states = along.near(movers, t)
+    near, states, close = along.near(movers, t)
     chosen = near[_behind(along.ref, [movers[k] for k in near], start_s)]
     if chosen.size == 0:
         return None
-    boxes = frenet_extents(along.ref, [movers[k] for k in chosen], [states[k] for k in chosen])
+    boxes = frenet_extents(along.ref, [movers[k] for k in chosen], [states[k] for k in chosen], close[chosen])
     s_max = boxes[1]
     hit = along.meets(boxes)  # (K, T, knots)
     meets = hit.any(axis=2)  # (K, T)

@@ -168,6 +168,8 @@ class LateralQPSolver:
         self._second_max_iter = integer("second_max_iter", second_max_iter, low=1)
         self._workspaces: OrderedDict[_MatrixKey, _Workspace] = OrderedDict()
         self._setup_count = 0
+        #: OSQP's initial rho (its default), read from the first set-up
+        self._rho = 0.1
 
     @property
     def setup_count(self) -> int:
@@ -183,10 +185,13 @@ class LateralQPSolver:
         the adapted ``rho``, so the next solve would depend on the earlier ones."""
         key: _MatrixKey = (problem.n, problem.ds, problem.weights, problem.end_d is not None)
         workspace = self._workspaces.get(key)
-        if workspace is not None and fresh and workspace.rho_adapted:
-            workspace = None
         if workspace is not None:
             self._workspaces.move_to_end(key)
+            if fresh and workspace.rho_adapted:
+                # back to the set-up's rho (one refactorisation, not a new set-up: the scaling, computed
+                # from the fixed P, A and q = 0, is the same)
+                workspace.solver.update_settings(rho=self._rho)
+                workspace.rho_adapted = False
             workspace.solver.update(q=q, l=lower, u=upper)
             return workspace, 0.0
         start = time.perf_counter()
@@ -197,6 +202,7 @@ class LateralQPSolver:
         solver.setup(
             P, np.zeros_like(q), A, lower, upper, max_iter=4000, time_limit=_NO_TIME_LIMIT_S, **self._settings
         )
+        self._rho = float(solver.settings.rho)
         solver.update(q=q)
         self._setup_count += 1
         workspace = _Workspace(solver=solver, P=P, A=A, max_iter=4000, time_limit_s=_NO_TIME_LIMIT_S)

@@ -23,10 +23,19 @@ of infeasibility.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import NDArray
 
-from solvers.lateral_qp_problem import FloatArray, LateralQPProblem, build_qp_matrices
+from solvers.lateral_qp_problem import (
+    FloatArray,
+    LateralQPProblem,
+    LateralWeights,
+    build_qp_matrices,
+    qp_matrices,
+)
 
 __all__ = ["CURVATURE_WEIGHT", "OFFSET_WEIGHT", "elastic_qp", "split"]
 
@@ -42,8 +51,25 @@ def elastic_qp(
 ) -> tuple[sp.csc_matrix, FloatArray, sp.csc_matrix, FloatArray, FloatArray]:
     """The elastic problem of ``problem`` as ``(P, q, A, l, u)`` over ``z = [x, σ, ς]`` (``P`` its upper
     triangle), in the form of :func:`solvers.lateral_qp_problem.build_qp_matrices`."""
-    P, q, A, lower, upper = build_qp_matrices(problem)
-    n = problem.n
+    P_z, rows, rigid, soft = _elastic_matrices(
+        problem.n, problem.ds, problem.weights, problem.end_d is not None
+    )
+    _, q, _, lower, upper = build_qp_matrices(problem)
+    m = soft.shape[0]
+    inf = np.full(m, np.inf)
+    low = np.concatenate((lower[rigid], lower[soft], -inf, np.zeros(m)))
+    high = np.concatenate((upper[rigid], inf, upper[soft], inf))
+    return P_z, np.concatenate((q, np.zeros(m))), rows, low, high
+
+
+@functools.lru_cache(maxsize=4)
+def _elastic_matrices(
+    n: int, ds: float, weights: LateralWeights, has_end_d: bool
+) -> tuple[sp.csc_matrix, sp.csc_matrix, NDArray[np.intp], NDArray[np.intp]]:
+    """The elastic problem's ``P`` and constraint matrix for the QP's key (see
+    :func:`solvers.lateral_qp_problem.qp_matrices`; shared: never write to them), the rows of the QP's
+    ``A`` kept rigid and those made soft, in the order of the elastic problem's rows."""
+    P, A = qp_matrices(n, ds, weights, has_end_d)
     knots = np.arange(1, n)
     soft = np.concatenate((knots, 2 * n + knots))  # the box rows of d and d″ past knot 0
     slack_of = np.concatenate((knots - 1, n - 1 + knots - 1))  # their slack's index among 2(n − 1)
@@ -56,12 +82,9 @@ def elastic_qp(
     rigid_rows = sp.hstack([rows_of[rigid], sp.csr_matrix((rigid.shape[0], m))])
     slacks = sp.hstack([sp.csr_matrix((m, 3 * n)), sp.identity(m, format="csr")])
     rows = sp.csc_matrix(sp.vstack([rigid_rows, plus, minus, slacks]))
-    inf = np.full(m, np.inf)
-    low = np.concatenate((lower[rigid], lower[soft], -inf, np.zeros(m)))
-    high = np.concatenate((upper[rigid], inf, upper[soft], inf))
-    weights = np.concatenate((np.full(n - 1, OFFSET_WEIGHT), np.full(n - 1, CURVATURE_WEIGHT)))
-    P_z = sp.csc_matrix(sp.block_diag([P, sp.diags(2.0 * weights)]))
-    return P_z, np.concatenate((q, np.zeros(m))), rows, low, high
+    weights_z = np.concatenate((np.full(n - 1, OFFSET_WEIGHT), np.full(n - 1, CURVATURE_WEIGHT)))
+    P_z = sp.csc_matrix(sp.block_diag([P, sp.diags(2.0 * weights_z)]))
+    return P_z, rows, rigid, soft
 
 
 def split(problem: LateralQPProblem, z: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -54,6 +54,7 @@ settled (parallel to the reference, straight) and, if ``end_d`` is given, near i
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -256,10 +257,13 @@ class LateralQPResult:
 # Matrices
 
 
+@functools.lru_cache(maxsize=8)
 def qp_matrices(
     n: int, ds: float, weights: LateralWeights, has_end_d: bool
 ) -> tuple[sp.csc_matrix, sp.csc_matrix]:
-    """``P`` (upper triangle, CSC) and ``A`` (CSC) for ``n`` knots at spacing ``ds``."""
+    """``P`` (upper triangle, CSC) and ``A`` (CSC) for ``n`` knots at spacing ``ds``; the last few kept
+    (a plan solves the same knots several times: retries, the second backend, the elastic problem), so
+    they are shared: read them, never write to them."""
     last = n - 1
     diag_d = np.full(n, weights.ref + weights.offset)
     if has_end_d:

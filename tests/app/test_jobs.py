@@ -3,16 +3,23 @@ and without a goal needs."""
 
 from __future__ import annotations
 
+import gc
 import threading
 import time
+
+import pytest
 
 from app.conversions import demo_goal, demo_request
 from app.jobs import Job, plan_job, warm_up
 from planner.thread_solvers import thread_solvers
 
 
-def test_the_warm_up_builds_the_speed_problems_with_and_without_a_goal() -> None:
+def test_the_warm_up_builds_the_speed_problems_with_and_without_a_goal(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     built: list[int] = []
+    frozen: list[int] = []  # the heap is frozen out of the cyclic GC once the warm-up has planned
+    monkeypatch.setattr(gc, "freeze", lambda: frozen.append(thread_solvers().speed.build_count))
 
     def process() -> None:  # the solvers are kept per thread: a thread of its own is a fresh process here
         warm_up()
@@ -25,3 +32,4 @@ def test_the_warm_up_builds_the_speed_problems_with_and_without_a_goal() -> None
     thread.start()
     thread.join()
     assert built == [2, 2]  # the goal's QP built by the warm-up, not by the first goal request
+    assert frozen == [2]  # frozen after the warm-up built both

@@ -391,3 +391,19 @@ def test_invalid_input_names_the_callers_field():
     with pytest.raises(InvalidReferenceError) as info:
         build_reference([[0.0, 0.0]], field_name="lane.center")
     assert info.value.field == "lane.center"
+
+
+def test_the_same_polyline_again_gets_the_reference_built_for_it() -> None:
+    """A closed loop sends the same polyline every cycle: the reference built for it is kept (read-only),
+    whatever container holds the values; other values or arguments get their own, and a bad polyline is
+    an error every time."""
+    points = [[0.0, 0.0], [10.0, 1.0], [20.0, 4.0], [30.0, 9.0]]
+    first = build_reference(points)
+    assert build_reference(np.array(points)) is first
+    assert not first.points.flags.writeable
+    moved = build_reference([[0.0, 0.0], [10.0, 1.0], [20.0, 4.0], [30.0, 9.5]])
+    assert moved is not first and moved.length != first.length
+    assert build_reference(points, max_spacing=0.25) is not first
+    for _ in range(2):
+        with pytest.raises(InvalidReferenceError):
+            build_reference([[0.0, 0.0], [float("nan"), 1.0]])

@@ -9,11 +9,13 @@ the checks found the faster car behind driving through it, and full braking was 
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
 from traffic import LANE, ROAD, T, car, violations
 
+from planner.collision import STATIC_MOTION, is_static, prediction_at
 from planner.config import DEFAULT_CONFIG
 from planner.pipeline import plan
 from planner.problem import (
@@ -27,7 +29,14 @@ from planner.problem import (
 )
 from planner.reference import build_reference
 from planner.result import PlanResult
-from planner.st_bounds import followers, moving_obstacles, space_time_bounds, static_shapes
+from planner.st_bounds import (
+    Along,
+    followers,
+    frenet_extents,
+    moving_obstacles,
+    space_time_bounds,
+    static_shapes,
+)
 from planner.trajectory import Path, frenet_path
 from planner.validation import Violation
 
@@ -82,7 +91,7 @@ def test_a_leader_ahead_bounds_how_far_the_ego_may_be_a_headway_later() -> None:
 
 def test_a_car_behind_bounds_the_ego_from_below_not_from_above() -> None:
     bounds = space_time_bounds(REF, _path(), _problem(car("behind", 15.0, 14.0)), KNOTS, 30.0)
-    assert bounds.upper is not None and np.all(np.isinf(bounds.upper))  # not followed
+    assert bounds.upper is None or np.all(np.isinf(bounds.upper))  # not followed (None: nothing bounds)
     assert bounds.lower is not None and np.all(np.diff(bounds.lower[np.isfinite(bounds.lower)]) >= 0.0)
     # ahead of its front for the follower headway, plus stop_gap
     c = DEFAULT_CONFIG
@@ -157,3 +166,86 @@ def test_a_car_that_overtakes_and_cuts_in_ahead_is_not_chased() -> None:
     assert result.status == "ok", result.message
     assert _violations(problem, result) == []
     assert np.max(result.trajectory.v) < 8.1  # not chasing it to get ahead again
+
+
+def test_a_problem_asked_again_gets_its_own_static_flags() -> None:
+    """The flags are kept for the last problem only: another problem (here one whose longer horizon
+    makes an obstacle move) is never answered with them, and asking again changes nothing."""
+    leaving = DynamicObstacle(
+        "leaving", 4.5, 1.8, np.array([[0.0, 60.0, 3.0, 0.0], [8.0, 60.0, 3.0, 0.0], [9.0, 90.0, 3.0, 0.0]])
+    )
+    problem = _problem(leaving, car("mover", 80.0, 5.0))
+    longer = replace(problem, options=replace(problem.options, horizon_time=10.0))
+    for _ in range(2):
+        assert [ob.id for ob in moving_obstacles(problem)] == ["mover"]
+        assert [ob.id for ob in moving_obstacles(longer)] == ["leaving", "mover"]
+        assert [ob_id for ob_id, _ in static_shapes(problem)] == ["leaving"]
+
+
+def _is_static_by_poses(obstacle: DynamicObstacle, horizon: float) -> bool:
+    """The definition, through the poses' positions as prediction_at gives them."""
+    pred = obstacle.prediction
+    inside = pred[(pred[:, 0] >= 0.0) & (pred[:, 0] <= horizon)]
+    states = np.vstack((prediction_at(obstacle, np.array([0.0, horizon]))[:, :2], inside[:, 1:3]))
+    return bool(np.max(np.linalg.norm(states - states[0], axis=1)) < STATIC_MOTION)
+
+
+def test_is_static_and_the_headings_agree_with_their_definitions() -> None:
+    """``is_static`` (positions only) is the definition through ``prediction_at``'s poses, and the
+    headings ``prediction_at`` interpolates are ``np.unwrap``'s, with and without a wrap."""
+    rng = np.random.default_rng(3)
+    for k in range(200):
+        t = np.cumsum(rng.uniform(0.05, 2.0, 6)) - 2.0
+        drift = rng.choice([0.0, 0.05, 0.2, 1.0])
+        xy = 50.0 + np.cumsum(rng.normal(0.0, drift, (6, 2)), axis=0)
+        heading = rng.uniform(-np.pi, np.pi, 6) if k % 2 else np.linspace(0.0, 0.5, 6)
+        ob = DynamicObstacle("o", 4.0, 2.0, np.column_stack((t, xy, heading)))
+        for horizon in (0.5, 3.0, 8.0):
+            assert is_static(ob, horizon) == _is_static_by_poses(ob, horizon)
+        times = np.linspace(t[0] - 1.0, t[-1] + 1.0, 50)
+        expected = np.interp(times, t, np.unwrap(heading))
+        assert np.array_equal(prediction_at(ob, times)[:, 2], expected)
+
+
+def test_boxes_mapped_only_near_the_path_give_the_same_bounds() -> None:
+    """The moving obstacles' boxes are mapped only at the times they come near the path: the bounds are
+    those of every box mapped (a far box meets nothing)."""
+    leader = car("leader", 60.0, 8.0)
+    behind = car("behind", 10.0, 16.0)
+    crossing = DynamicObstacle(
+        "crossing", 4.5, 1.8, np.array([[0.0, 120.0, -60.0, np.pi / 2], [8.0, 120.0, 60.0, np.pi / 2]])
+    )
+    far = car("far", 40.0, 10.0, y=40.0)
+    problem = _problem(leader, behind, crossing, far)
+    path = _path()
+    fast = space_time_bounds(REF, path, problem, KNOTS, 30.0)
+
+    near = Along.near
+
+    def everywhere(self: Along, movers: list[DynamicObstacle], t: np.ndarray) -> Any:
+        close_ones, states, close = near(self, movers, t)
+        return close_ones, states, np.ones_like(close)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(Along, "near", everywhere)
+        full = space_time_bounds(REF, path, problem, KNOTS, 30.0)
+    assert fast.upper is not None and full.upper is not None and fast.lower is not None
+    assert full.lower is not None
+    assert np.array_equal(fast.upper, full.upper)
+    assert np.array_equal(fast.lower, full.lower)
+    extents = frenet_extents(REF, [crossing], [prediction_at(crossing, KNOTS)], np.arange(81)[None, :] < 40)
+    whole = frenet_extents(REF, [crossing], [prediction_at(crossing, KNOTS)])
+    for part, every in zip(extents, whole, strict=True):
+        assert np.array_equal(part[:, :40], every[:, :40]) and np.isnan(part[:, 40:]).all()
+
+
+def test_who_is_behind_is_the_same_asked_for_any_subset_or_another_start() -> None:
+    """The verdicts kept for a reference and a start are each obstacle's own: a subset, another order or
+    another start gets what it would get afresh."""
+    movers = [car("behind", 10.0, 16.0), car("leader", 60.0, 8.0), car("far", 0.0, 5.0, y=3.0)]
+    assert [ob.id for ob in followers(REF, movers, 30.0)] == ["behind", "far"]
+    assert [ob.id for ob in followers(REF, movers[::-1], 30.0)] == ["far", "behind"]
+    assert [ob.id for ob in followers(REF, movers[1:], 30.0)] == ["far"]
+    assert [ob.id for ob in followers(REF, movers, 5.0)] == ["far"]  # the ego behind the first car
+    assert [ob.id for ob in followers(REF, movers, 70.0)] == ["behind", "leader", "far"]
+    assert [ob.id for ob in followers(REF, movers, 30.0)] == ["behind", "far"]

@@ -685,3 +685,29 @@ def test_property_feasible_problems_solve_within_their_constraints(problem: Late
         _assert_feasible(problem, result)
     elif result.info.status is SolverStatus.SOLVED_INACCURATE:
         assert result.info.max_violation <= _admm_tol(result)
+
+
+def test_a_cold_solve_after_another_reuses_the_setup_and_gives_the_first_answer_bit_for_bit() -> None:
+    """A cold solve's answer does not depend on what the solver solved before: where OSQP adapted its
+    ``rho`` then, the set-up goes back to the initial ``rho`` (no new set-up) and the answer, iterations
+    included, is a fresh solver's."""
+    cases = _active_cases()
+    problem, other = cases["slope"][0], cases["jerk"][0]  # the same n, Δs, weights and end
+    fresh = LateralQPSolver().solve(problem, warm_start=False)
+    solver = LateralQPSolver()
+    solver.solve(other, warm_start=False)
+    assert any(w.rho_adapted for w in solver._workspaces.values())  # the case this is about
+    again = solver.solve(problem, warm_start=False)
+    assert solver.setup_count == 1
+    assert again.info.iterations == fresh.info.iterations
+    assert again.info.status is fresh.info.status
+    assert np.array_equal(again.x, fresh.x)
+
+
+def test_the_matrices_of_a_key_are_built_once_and_shared() -> None:
+    problem = _lane_change(n=50)
+    P, _, A, _, _ = build_qp_matrices(problem)
+    P2, _, A2, _, _ = build_qp_matrices(_lane_change(n=50, d0=0.4))
+    assert P is P2 and A is A2
+    P3, _, _, _, _ = build_qp_matrices(_lane_change(n=50, ds=0.25))
+    assert P3 is not P and P3.shape == P.shape and not np.array_equal(P3.toarray(), P.toarray())

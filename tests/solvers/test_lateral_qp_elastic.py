@@ -9,7 +9,7 @@ import pytest
 
 from solvers.conic_qp import solve_conic_qp
 from solvers.lateral_qp import LateralQPSolver
-from solvers.lateral_qp_elastic import elastic_qp, split
+from solvers.lateral_qp_elastic import _elastic_matrices, elastic_qp, split
 from solvers.lateral_qp_problem import LateralQPProblem, objective
 from solvers.result import SolverStatus
 
@@ -72,3 +72,16 @@ def test_the_solver_hands_an_unfinished_qp_to_the_elastic_problem() -> None:
     assert result.info.status is SolverStatus.RELAXED
     _, x, _ = _elastic(problem)
     np.testing.assert_allclose(result.x, x, atol=1e-9)
+
+
+def test_the_elastic_matrices_are_the_ones_built_afresh() -> None:
+    """The elastic problem's matrices, built once per key, are those built afresh, with each problem's own
+    bounds."""
+    problem = _corridor()
+    first = elastic_qp(problem)
+    built = _elastic_matrices.__wrapped__(problem.n, problem.ds, problem.weights, problem.end_d is not None)
+    assert first[0] is elastic_qp(replace(problem, d0=problem.d0 + 0.1))[0]
+    assert np.array_equal(first[0].toarray(), built[0].toarray())
+    assert np.array_equal(first[2].toarray(), built[1].toarray())
+    moved = elastic_qp(replace(problem, d0=problem.d0 + 0.1))
+    assert not np.array_equal(moved[3], first[3])  # the bounds are the problem's own
