@@ -163,11 +163,13 @@ def fallback(
 def straight_on(ref: ReferenceLine, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Path:
     """The straight line from the ego's planned point (its centre, a car's rear axle) along its heading
     [rad], long enough to brake to a stop
-    from its speed (``v²/(2·a_dec)`` plus a second at that speed for the jerk's ramp, 1 m at least), at
+    from its speed (``v²/(2·a_dec)`` plus a second at that speed for the jerk's ramp; at most the horizon at
+    that speed, 1 m at least), at
     knots ``config.lateral.knot_spacing`` [m] apart or wider (at most ``max_knots``); ``s, d`` by TransF-κ."""
     ego, vehicle = problem.ego, problem.vehicle
     v0 = max(ego.speed, 0.0)
-    length = max(v0 * v0 / (2.0 * vehicle.max_deceleration) + v0, 1.0)
+    # no longer than the horizon drives at the start's speed (a profile past the end carries on straight)
+    length = max(min(v0 * v0 / (2.0 * vehicle.max_deceleration) + v0, v0 * problem.options.horizon_time), 1.0)
     n = int(np.clip(np.ceil(length / config.lateral.knot_spacing) + 1, 2, config.lateral.max_knots))
     sigma: FloatArray = np.linspace(0.0, length, n)
     # the planned point: a car's rear axle, ``l_r`` behind the centre along the yaw
