@@ -17,8 +17,10 @@ and one partial step, and changes the speed by::
 
 from __future__ import annotations
 
+import itertools
 import math
-from dataclasses import dataclass, replace
+from collections.abc import Iterator
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -63,15 +65,19 @@ def braking_profile(problem: SpeedProblem) -> FloatArray:
     unavoidable it releases as fast as possible and then stops the backward motion the same way (mirrored),
     so ``v`` stays above :meth:`SpeedProblem.speed_floor`.
     """
-    dt, jmax, a_min = problem.dt, problem.jerk_max, problem.a_min
-    n = problem.steps
-    jerk: list[float] = []
-    v, a = problem.v0, problem.a0
+    steps = _braking_steps(problem.v0, problem.a0, problem.steps, problem.dt, problem.jerk_max, problem.a_min)
+    return np.fromiter(steps, dtype=np.float64, count=problem.steps)
+
+
+def _braking_steps(v: float, a: float, n: int, dt: float, jmax: float, a_min: float) -> Iterator[float]:
+    """The jerks of :func:`braking_profile` from ``(v, a)`` on a grid of ``n`` steps of ``dt`` [s], one at a
+    time (then zeros): a caller that follows only the first few steps computes only those."""
+    done = 0
 
     def after(v: float, a: float, j: float) -> tuple[float, float]:
         return v + a * dt + j * dt**2 / 2, a + j * dt
 
-    while len(jerk) < n and not (abs(v) <= 1e-12 and abs(a) <= 1e-12):
+    while done < n and not (abs(v) <= 1e-12 and abs(a) <= 1e-12):
         sign = 1.0 if v > 0 or (v == 0 and a > 0) else -1.0  # mirror a backward motion
         vm, am = sign * v, sign * a
         brake = float(np.clip((a_min - am) / dt, -jmax, jmax))
@@ -85,12 +91,13 @@ def braking_profile(problem: SpeedProblem) -> FloatArray:
                 mid = 0.5 * (low + high)
                 low, high = (mid, high) if _spare_speed(*after(vm, am, mid), dt, jmax) < 0 else (low, mid)
             steps = [high, *_release(after(vm, am, high)[1], dt, jmax)[0]]
-        for j in steps[: n - len(jerk)]:
-            jerk.append(sign * j)
+        for j in steps[: n - done]:
+            done += 1
+            yield sign * j
             v, a = after(v, a, sign * j)
         if len(steps) > 1:  # landed, up to rounding
             v = a = 0.0
-    return np.array(jerk + [0.0] * (n - len(jerk)), dtype=np.float64)
+    yield from itertools.repeat(0.0, n - done)
 
 
 def cruise_profile(problem: SpeedProblem) -> FloatArray:
@@ -192,7 +199,7 @@ def limited_profile(problem: SpeedProblem, v_keep: float) -> FloatArray:
     a_lo, a_hi = problem.a_min, problem.a_max
     jerk = np.zeros(n)
     s, v, a = problem.s0, problem.v0, problem.a0
-    brake: list[float] = []  # the rest of the full stop being followed, if any
+    brake: Iterator[float] | None = None  # the rest of the full stop being followed, if any
     envelope = _Envelope.of(problem)
 
     def after(s: float, v: float, a: float, j: float) -> tuple[float, float, float]:
@@ -203,12 +210,11 @@ def limited_profile(problem: SpeedProblem, v_keep: float) -> FloatArray:
         nxt = after(s, v, a, j)
         releasable = nxt[1] >= 0.0 and _spare_speed(nxt[1], nxt[2], dt, jmax) >= 0.0
         if releasable and (envelope.keeps(*nxt) or _brakes_within(problem, *nxt)):
-            brake = []
+            brake = None
         else:
-            if not brake:
-                here = replace(problem, s0=s, v0=max(v, 0.0), a0=a, steps=n - k)
-                brake = braking_profile(here).tolist()
-            j = brake.pop(0)
+            if brake is None:  # the full stop from here (its first steps only are taken)
+                brake = _braking_steps(max(v, 0.0), a, n - k, dt, jmax, a_lo)
+            j = next(brake)
             nxt = after(s, v, a, j)
         jerk[k] = j
         s, v, a = nxt
