@@ -17,6 +17,7 @@ and one partial step, and changes the speed by::
 
 from __future__ import annotations
 
+import bisect
 import itertools
 import math
 from collections.abc import Iterator
@@ -156,13 +157,17 @@ class _Envelope:
     ``v_M² + 2b s_M``)."""
 
     problem: SpeedProblem
-    energy: FloatArray
+    energy: tuple[float, ...]
+    #: the limit's knots as Python floats (scalar look-ups without numpy's per-call cost)
+    knots_s: tuple[float, ...]
+    knots_v: tuple[float, ...]
 
     @classmethod
     def of(cls, problem: SpeedProblem) -> _Envelope:
         s, v, b = problem.limit_s, problem.limit_v, -problem.a_min
         lowest = np.minimum(v, np.append(v[1:], v[-1]))
-        return cls(problem, np.minimum.accumulate((lowest**2 + 2.0 * b * s)[::-1])[::-1])
+        energy = np.minimum.accumulate((lowest**2 + 2.0 * b * s)[::-1])[::-1]
+        return cls(problem, tuple(energy.tolist()), tuple(s.tolist()), tuple(v.tolist()))
 
     def keeps(self, s: float, v: float, a: float) -> bool:
         """Whether full braking from ``(s, v, a)`` surely keeps the limit (False: perhaps not)."""
@@ -170,14 +175,14 @@ class _Envelope:
         ramp = max(a - p.a_min, 0.0) / p.jerk_max + p.dt
         peak = v + max(a, 0.0) * ramp
         reach = s + max(peak, 0.0) * ramp
-        limit_s, limit_v = p.limit_s, p.limit_v
-        lo, hi = np.searchsorted(limit_s, (s, reach), side="right")
-        ends = np.interp((s, reach), limit_s, limit_v)
-        least = min(float(ends.min()), float(limit_v[lo:hi].min()) if hi > lo else math.inf)
+        knots_v = self.knots_v
+        lo, hi = bisect.bisect_right(self.knots_s, s), bisect.bisect_right(self.knots_s, reach)
+        end_s, end_reach = np.interp((s, reach), p.limit_s, p.limit_v).tolist()
+        least = min(end_s, end_reach, min(knots_v[lo:hi]) if hi > lo else math.inf)
         if peak > least + _LIMIT_TOL:
             return False
-        ahead = min(float(ends[1]), float(limit_v[min(hi, limit_v.size - 1)])) ** 2 + 2.0 * -p.a_min * reach
-        beyond = float(self.energy[hi]) if hi < self.energy.size else math.inf
+        ahead = min(end_reach, knots_v[min(hi, len(knots_v) - 1)]) ** 2 + 2.0 * -p.a_min * reach
+        beyond = self.energy[hi] if hi < len(self.energy) else math.inf
         return peak**2 + 2.0 * -p.a_min * reach <= min(ahead, beyond) + _LIMIT_TOL
 
 

@@ -194,3 +194,39 @@ def test_braking_profile_is_its_own_prefix(v0: float, a0: float, steps: int) -> 
     :func:`limited_profile` follow a stop step by step)."""
     problem = make_problem(v0=v0, a0=a0, jerk_max=30.0, a_min=-6.0, a_max=2.5, steps=120)
     assert np.array_equal(braking_profile(replace(problem, steps=steps)), braking_profile(problem)[:steps])
+
+
+def _keeps_reference(problem: SpeedProblem, s: float, v: float, a: float) -> bool:
+    """:meth:`_Envelope.keeps` as first written, on numpy arrays (the reference for the scalar one)."""
+    lowest = np.minimum(problem.limit_v, np.append(problem.limit_v[1:], problem.limit_v[-1]))
+    b = -problem.a_min
+    energy = np.minimum.accumulate((lowest**2 + 2.0 * b * problem.limit_s)[::-1])[::-1]
+    ramp = max(a - problem.a_min, 0.0) / problem.jerk_max + problem.dt
+    peak = v + max(a, 0.0) * ramp
+    reach = s + max(peak, 0.0) * ramp
+    limit_s, limit_v = problem.limit_s, problem.limit_v
+    lo, hi = np.searchsorted(limit_s, (s, reach), side="right")
+    ends = np.interp((s, reach), limit_s, limit_v)
+    least = min(float(ends.min()), float(limit_v[lo:hi].min()) if hi > lo else np.inf)
+    if peak > least + 1e-6:
+        return False
+    ahead = min(float(ends[1]), float(limit_v[min(hi, limit_v.size - 1)])) ** 2 + 2.0 * b * reach
+    beyond = float(energy[hi]) if hi < energy.size else np.inf
+    return bool(peak**2 + 2.0 * b * reach <= min(ahead, beyond) + 1e-6)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    limit_v=st.lists(st.floats(0.5, 30.0), min_size=2, max_size=12),
+    spacing=st.floats(0.5, 20.0),
+    s=st.floats(-10.0, 250.0),
+    v=st.floats(0.0, 30.0),
+    a=st.floats(-6.0, 2.5),
+)
+def test_the_quick_braking_test_equals_its_reference(
+    limit_v: list[float], spacing: float, s: float, v: float, a: float
+) -> None:
+    problem = make_problem(
+        limit_s=spacing * np.arange(len(limit_v)), limit_v=limit_v, jerk_max=30.0, a_min=-6.0, a_max=2.5
+    )
+    assert _Envelope.of(problem).keeps(s, v, a) == _keeps_reference(problem, s, v, a)
