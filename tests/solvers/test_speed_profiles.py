@@ -230,3 +230,16 @@ def test_the_quick_braking_test_equals_its_reference(
         limit_s=spacing * np.arange(len(limit_v)), limit_v=limit_v, jerk_max=30.0, a_min=-6.0, a_max=2.5
     )
     assert _Envelope.of(problem).keeps(s, v, a) == _keeps_reference(problem, s, v, a)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    v=st.floats(-30.0, 30.0),
+    a=st.floats(-8.0, 8.0) | st.just(0.0),
+    dt=st.floats(0.01, 0.5),
+    jmax=st.floats(0.5, 50.0),
+)
+def test_the_spare_speed_is_the_release_s_exactly(v: float, a: float, dt: float, jmax: float) -> None:
+    from solvers.speed_profiles import _release, _spare_speed
+
+    assert _spare_speed(v, a, dt, jmax) == v + _release(a, dt, jmax)[1]
