@@ -42,6 +42,7 @@ the sample before it.
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
@@ -133,7 +134,7 @@ def moving_contacts(traj: Trajectory, vehicle: Vehicle, movers: Sequence[Dynamic
         return []
     t = traj.t
     ids = [ob.id for ob in movers]
-    boxes = _Movers.of(movers)
+    boxes = _movers_table(movers)
     radius = half_diagonal(vehicle.length, vehicle.width)
     every = np.repeat(np.arange(len(movers)), t.shape[0])
     cx, cy = boxes.centres(every, np.tile(t, len(movers)))
@@ -151,6 +152,21 @@ def moving_contacts(traj: Trajectory, vehicle: Vehicle, movers: Sequence[Dynamic
     reach = _ego_travel(traj, vehicle)[k] + boxes.travelled(m, t[k], t[k + 1])
     near = lower[m, k] + lower[m, k + 1] <= reach
     return _contacts(traj, vehicle, ids, boxes, m[near], k[near])
+
+
+#: the moving obstacles last tabled and their table: a plan checks several trajectories against the same
+#: obstacles (the fallback weighs up to seven). Reused only for the very same objects, in the same order.
+_LAST_MOVERS: tuple[tuple[DynamicObstacle, ...], _Movers | None] = ((), None)
+
+
+def _movers_table(movers: Sequence[DynamicObstacle]) -> _Movers:
+    """:meth:`_Movers.of` ``movers``, from the last call's table where they are the same objects."""
+    global _LAST_MOVERS
+    last, table = _LAST_MOVERS
+    if table is None or len(last) != len(movers) or not all(map(operator.is_, last, movers)):
+        table = _Movers.of(movers)
+        _LAST_MOVERS = (tuple(movers), table)
+    return table
 
 
 def _ego_travel(traj: Trajectory, vehicle: Vehicle) -> FloatArray:

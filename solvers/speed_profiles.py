@@ -17,8 +17,11 @@ and one partial step, and changes the speed by::
 
 from __future__ import annotations
 
+import bisect
+import itertools
 import math
-from dataclasses import dataclass, replace
+from collections.abc import Iterator
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -48,8 +51,14 @@ def _release(a: float, dt: float, jmax: float) -> tuple[list[float], float]:
 
 
 def _spare_speed(v: float, a: float, dt: float, jmax: float) -> float:
-    """Speed left when ``a`` returns to 0 as fast as possible from ``(v, a)`` [m/s]."""
-    return v + _release(a, dt, jmax)[1]
+    """Speed left when ``a`` returns to 0 as fast as possible from ``(v, a)`` [m/s] (:func:`_release`'s
+    change of speed, without its list of jerks: the bisection of the landing asks 60 times a step)."""
+    if a == 0.0:
+        return v + 0.0
+    direction = -math.copysign(1.0, a)
+    full = math.floor(abs(a) / (jmax * dt) + 1e-12)
+    rest = a + direction * jmax * dt * full
+    return v + (full * a * dt + direction * jmax * dt**2 * full**2 / 2 + rest * dt / 2)
 
 
 def braking_profile(problem: SpeedProblem) -> FloatArray:
@@ -63,15 +72,19 @@ def braking_profile(problem: SpeedProblem) -> FloatArray:
     unavoidable it releases as fast as possible and then stops the backward motion the same way (mirrored),
     so ``v`` stays above :meth:`SpeedProblem.speed_floor`.
     """
-    dt, jmax, a_min = problem.dt, problem.jerk_max, problem.a_min
-    n = problem.steps
-    jerk: list[float] = []
-    v, a = problem.v0, problem.a0
+    steps = _braking_steps(problem.v0, problem.a0, problem.steps, problem.dt, problem.jerk_max, problem.a_min)
+    return np.fromiter(steps, dtype=np.float64, count=problem.steps)
+
+
+def _braking_steps(v: float, a: float, n: int, dt: float, jmax: float, a_min: float) -> Iterator[float]:
+    """The jerks of :func:`braking_profile` from ``(v, a)`` on a grid of ``n`` steps of ``dt`` [s], one at a
+    time (then zeros): a caller that follows only the first few steps computes only those."""
+    done = 0
 
     def after(v: float, a: float, j: float) -> tuple[float, float]:
         return v + a * dt + j * dt**2 / 2, a + j * dt
 
-    while len(jerk) < n and not (abs(v) <= 1e-12 and abs(a) <= 1e-12):
+    while done < n and not (abs(v) <= 1e-12 and abs(a) <= 1e-12):
         sign = 1.0 if v > 0 or (v == 0 and a > 0) else -1.0  # mirror a backward motion
         vm, am = sign * v, sign * a
         brake = float(np.clip((a_min - am) / dt, -jmax, jmax))
@@ -85,12 +98,13 @@ def braking_profile(problem: SpeedProblem) -> FloatArray:
                 mid = 0.5 * (low + high)
                 low, high = (mid, high) if _spare_speed(*after(vm, am, mid), dt, jmax) < 0 else (low, mid)
             steps = [high, *_release(after(vm, am, high)[1], dt, jmax)[0]]
-        for j in steps[: n - len(jerk)]:
-            jerk.append(sign * j)
+        for j in steps[: n - done]:
+            done += 1
+            yield sign * j
             v, a = after(v, a, sign * j)
         if len(steps) > 1:  # landed, up to rounding
             v = a = 0.0
-    return np.array(jerk + [0.0] * (n - len(jerk)), dtype=np.float64)
+    yield from itertools.repeat(0.0, n - done)
 
 
 def cruise_profile(problem: SpeedProblem) -> FloatArray:
@@ -149,13 +163,17 @@ class _Envelope:
     ``v_M² + 2b s_M``)."""
 
     problem: SpeedProblem
-    energy: FloatArray
+    energy: tuple[float, ...]
+    #: the limit's knots as Python floats (scalar look-ups without numpy's per-call cost)
+    knots_s: tuple[float, ...]
+    knots_v: tuple[float, ...]
 
     @classmethod
     def of(cls, problem: SpeedProblem) -> _Envelope:
         s, v, b = problem.limit_s, problem.limit_v, -problem.a_min
         lowest = np.minimum(v, np.append(v[1:], v[-1]))
-        return cls(problem, np.minimum.accumulate((lowest**2 + 2.0 * b * s)[::-1])[::-1])
+        energy = np.minimum.accumulate((lowest**2 + 2.0 * b * s)[::-1])[::-1]
+        return cls(problem, tuple(energy.tolist()), tuple(s.tolist()), tuple(v.tolist()))
 
     def keeps(self, s: float, v: float, a: float) -> bool:
         """Whether full braking from ``(s, v, a)`` surely keeps the limit (False: perhaps not)."""
@@ -163,14 +181,14 @@ class _Envelope:
         ramp = max(a - p.a_min, 0.0) / p.jerk_max + p.dt
         peak = v + max(a, 0.0) * ramp
         reach = s + max(peak, 0.0) * ramp
-        limit_s, limit_v = p.limit_s, p.limit_v
-        lo, hi = np.searchsorted(limit_s, (s, reach), side="right")
-        ends = np.interp((s, reach), limit_s, limit_v)
-        least = min(float(ends.min()), float(limit_v[lo:hi].min()) if hi > lo else math.inf)
+        knots_v = self.knots_v
+        lo, hi = bisect.bisect_right(self.knots_s, s), bisect.bisect_right(self.knots_s, reach)
+        end_s, end_reach = np.interp((s, reach), p.limit_s, p.limit_v).tolist()
+        least = min(end_s, end_reach, min(knots_v[lo:hi]) if hi > lo else math.inf)
         if peak > least + _LIMIT_TOL:
             return False
-        ahead = min(float(ends[1]), float(limit_v[min(hi, limit_v.size - 1)])) ** 2 + 2.0 * -p.a_min * reach
-        beyond = float(self.energy[hi]) if hi < self.energy.size else math.inf
+        ahead = min(end_reach, knots_v[min(hi, len(knots_v) - 1)]) ** 2 + 2.0 * -p.a_min * reach
+        beyond = self.energy[hi] if hi < len(self.energy) else math.inf
         return peak**2 + 2.0 * -p.a_min * reach <= min(ahead, beyond) + _LIMIT_TOL
 
 
@@ -192,7 +210,7 @@ def limited_profile(problem: SpeedProblem, v_keep: float) -> FloatArray:
     a_lo, a_hi = problem.a_min, problem.a_max
     jerk = np.zeros(n)
     s, v, a = problem.s0, problem.v0, problem.a0
-    brake: list[float] = []  # the rest of the full stop being followed, if any
+    brake: Iterator[float] | None = None  # the rest of the full stop being followed, if any
     envelope = _Envelope.of(problem)
 
     def after(s: float, v: float, a: float, j: float) -> tuple[float, float, float]:
@@ -203,12 +221,11 @@ def limited_profile(problem: SpeedProblem, v_keep: float) -> FloatArray:
         nxt = after(s, v, a, j)
         releasable = nxt[1] >= 0.0 and _spare_speed(nxt[1], nxt[2], dt, jmax) >= 0.0
         if releasable and (envelope.keeps(*nxt) or _brakes_within(problem, *nxt)):
-            brake = []
+            brake = None
         else:
-            if not brake:
-                here = replace(problem, s0=s, v0=max(v, 0.0), a0=a, steps=n - k)
-                brake = braking_profile(here).tolist()
-            j = brake.pop(0)
+            if brake is None:  # the full stop from here (its first steps only are taken)
+                brake = _braking_steps(max(v, 0.0), a, n - k, dt, jmax, a_lo)
+            j = next(brake)
             nxt = after(s, v, a, j)
         jerk[k] = j
         s, v, a = nxt

@@ -191,3 +191,29 @@ def test_a_contact_is_within_the_tolerance_at_a_fine_sampling(
         boxes = shapely.polygons(box_corners(*pose.T, ob.length, ob.width))
         moved = np.abs(np.diff(pose, axis=0)) @ [1.0, 1.0, half_diagonal(ob.length, ob.width)]
         assert float(np.min(shapely.distance(prints, boxes))) <= slack + float(np.max(moved, initial=0.0))
+
+
+def test_the_moving_obstacles_table_is_reused_only_for_the_same_obstacles() -> None:
+    """A second trajectory against the same obstacles reuses their table; other obstacles (even equal
+    in value but other objects, or in another order) get their own, and the contacts are the same as
+    from a fresh table."""
+    from planner import swept
+
+    t = np.arange(41) * 0.1
+    crossing = np.column_stack((t, np.full_like(t, 10.0), 5.0 - 5.0 * t, np.full_like(t, -np.pi / 2)))
+    parked = np.column_stack((t, np.full_like(t, 30.0), np.zeros_like(t), np.zeros_like(t)))
+    a = DynamicObstacle("crossing", 1.0, 1.0, crossing)
+    b = DynamicObstacle("parked", 4.0, 2.0, parked)
+    traj = _straight()
+    first = moving_contacts(traj, ROBOT, [a, b])
+    table = swept._LAST_MOVERS[1]
+    assert moving_contacts(_straight(speed=5.0), ROBOT, [a, b]) is not None
+    assert swept._LAST_MOVERS[1] is table  # the same objects: reused
+    swapped = moving_contacts(traj, ROBOT, [b, a])
+    assert swept._LAST_MOVERS[1] is not table
+    assert swapped == first[::-1]
+    copy = DynamicObstacle("crossing", 1.0, 1.0, crossing + np.array([0.0, 0.0, 100.0, 0.0]))
+    # another object: its own table (it is far away; the parked box is still met)
+    assert moving_contacts(traj, ROBOT, [copy, b]) == [c for c in first if c.obstacle_id == "parked"]
+    assert moving_contacts(traj, ROBOT, [a, b]) == first
+    assert [c.obstacle_id for c in first] == ["crossing", "parked"]

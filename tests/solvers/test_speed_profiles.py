@@ -132,3 +132,114 @@ def test_the_quick_braking_test_never_passes_a_state_whose_braking_breaks_the_li
     )
     if _Envelope.of(problem).keeps(s, v, a):
         assert _brakes_within(problem, s, v, a)
+
+
+def _limited_reference(problem: SpeedProblem, v_keep: float) -> np.ndarray:
+    """:func:`limited_profile` as first written: each full stop computed whole (the reference for the
+    one that computes only the steps it follows)."""
+    from solvers.speed_profiles import _spare_speed, _steer
+
+    dt, n, jmax = problem.dt, problem.steps, problem.jerk_max
+    jerk = np.zeros(n)
+    s, v, a = problem.s0, problem.v0, problem.a0
+    brake: list[float] = []
+    envelope = _Envelope.of(problem)
+
+    def after(s: float, v: float, a: float, j: float) -> tuple[float, float, float]:
+        return s + v * dt + a * dt**2 / 2 + j * dt**3 / 6, v + a * dt + j * dt**2 / 2, a + j * dt
+
+    for k in range(n):
+        j = _steer(v, a, v_keep, dt, jmax, min(problem.a_min, a), max(problem.a_max, a))
+        nxt = after(s, v, a, j)
+        releasable = nxt[1] >= 0.0 and _spare_speed(nxt[1], nxt[2], dt, jmax) >= 0.0
+        if releasable and (envelope.keeps(*nxt) or _brakes_within(problem, *nxt)):
+            brake = []
+        else:
+            if not brake:
+                brake = braking_profile(replace(problem, s0=s, v0=max(v, 0.0), a0=a, steps=n - k)).tolist()
+            j = brake.pop(0)
+            nxt = after(s, v, a, j)
+        jerk[k] = j
+        s, v, a = nxt
+    return jerk
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    v0=st.floats(0.0, 30.0),
+    a0=st.floats(-6.0, 2.5),
+    v_keep=st.floats(0.0, 35.0),
+    limit_v=st.lists(st.floats(0.5, 30.0), min_size=2, max_size=8),
+    spacing=st.floats(1.0, 30.0),
+)
+def test_limited_profile_equals_its_reference_exactly(
+    v0: float, a0: float, v_keep: float, limit_v: list[float], spacing: float
+) -> None:
+    problem = make_problem(
+        v0=v0,
+        a0=a0,
+        limit_s=spacing * np.arange(len(limit_v)),
+        limit_v=limit_v,
+        jerk_max=30.0,
+        a_min=-6.0,
+        a_max=2.5,
+    )
+    assert np.array_equal(limited_profile(problem, v_keep), _limited_reference(problem, v_keep))
+
+
+@settings(max_examples=60, deadline=None)
+@given(v0=st.floats(0.0, 30.0), a0=st.floats(-6.0, 2.5), steps=st.integers(1, 120))
+def test_braking_profile_is_its_own_prefix(v0: float, a0: float, steps: int) -> None:
+    """The full stop on a shorter grid is the first steps of the one on a longer grid (what lets
+    :func:`limited_profile` follow a stop step by step)."""
+    problem = make_problem(v0=v0, a0=a0, jerk_max=30.0, a_min=-6.0, a_max=2.5, steps=120)
+    assert np.array_equal(braking_profile(replace(problem, steps=steps)), braking_profile(problem)[:steps])
+
+
+def _keeps_reference(problem: SpeedProblem, s: float, v: float, a: float) -> bool:
+    """:meth:`_Envelope.keeps` as first written, on numpy arrays (the reference for the scalar one)."""
+    lowest = np.minimum(problem.limit_v, np.append(problem.limit_v[1:], problem.limit_v[-1]))
+    b = -problem.a_min
+    energy = np.minimum.accumulate((lowest**2 + 2.0 * b * problem.limit_s)[::-1])[::-1]
+    ramp = max(a - problem.a_min, 0.0) / problem.jerk_max + problem.dt
+    peak = v + max(a, 0.0) * ramp
+    reach = s + max(peak, 0.0) * ramp
+    limit_s, limit_v = problem.limit_s, problem.limit_v
+    lo, hi = np.searchsorted(limit_s, (s, reach), side="right")
+    ends = np.interp((s, reach), limit_s, limit_v)
+    least = min(float(ends.min()), float(limit_v[lo:hi].min()) if hi > lo else np.inf)
+    if peak > least + 1e-6:
+        return False
+    ahead = min(float(ends[1]), float(limit_v[min(hi, limit_v.size - 1)])) ** 2 + 2.0 * b * reach
+    beyond = float(energy[hi]) if hi < energy.size else np.inf
+    return bool(peak**2 + 2.0 * b * reach <= min(ahead, beyond) + 1e-6)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    limit_v=st.lists(st.floats(0.5, 30.0), min_size=2, max_size=12),
+    spacing=st.floats(0.5, 20.0),
+    s=st.floats(-10.0, 250.0),
+    v=st.floats(0.0, 30.0),
+    a=st.floats(-6.0, 2.5),
+)
+def test_the_quick_braking_test_equals_its_reference(
+    limit_v: list[float], spacing: float, s: float, v: float, a: float
+) -> None:
+    problem = make_problem(
+        limit_s=spacing * np.arange(len(limit_v)), limit_v=limit_v, jerk_max=30.0, a_min=-6.0, a_max=2.5
+    )
+    assert _Envelope.of(problem).keeps(s, v, a) == _keeps_reference(problem, s, v, a)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    v=st.floats(-30.0, 30.0),
+    a=st.floats(-8.0, 8.0) | st.just(0.0),
+    dt=st.floats(0.01, 0.5),
+    jmax=st.floats(0.5, 50.0),
+)
+def test_the_spare_speed_is_the_release_s_exactly(v: float, a: float, dt: float, jmax: float) -> None:
+    from solvers.speed_profiles import _release, _spare_speed
+
+    assert _spare_speed(v, a, dt, jmax) == v + _release(a, dt, jmax)[1]
