@@ -360,7 +360,8 @@ def inside(workdir: str, mounts: list[str], keep: list[str], cmd: list[str]) -> 
         mount("-t", "tmpfs", "-o", f"size={size},mode=1777,nosuid,nodev", "emptydir", path)
     for path in keep:
         os.makedirs(path, exist_ok=True)  # in the tmpfs that hid it
-        mount("--bind", f"/proc/{os.getpid()}/fd/{held[path]}", path)
+        # no canonicalising: the fd's path now names the empty folder in the tmpfs that hid it
+        mount("--no-canonicalize", "--bind", f"/proc/{os.getpid()}/fd/{held[path]}", path)
         mount("-o", "remount,bind,ro", path)
     os.chdir(workdir)
     for fd in held.values():
