@@ -162,10 +162,9 @@ def fallback(
 
 def straight_on(ref: ReferenceLine, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Path:
     """The straight line from the ego's planned point (its centre, a car's rear axle) along its heading
-    [rad], long enough to brake to a stop
-    from its speed (``v²/(2·a_dec)`` plus a second at that speed for the jerk's ramp; at most the horizon at
-    that speed, 1 m at least), at
-    knots ``config.lateral.knot_spacing`` [m] apart or wider (at most ``max_knots``); ``s, d`` by TransF-κ."""
+    [rad], long enough to brake to a stop from its speed (``v²/(2·a_dec)`` plus a second at that speed for
+    the jerk's ramp; at most the horizon at that speed, 1 m at least), at knots
+    ``config.lateral.knot_spacing`` [m] apart or wider (at most ``max_knots``); ``s, d`` by TransF-κ."""
     ego, vehicle = problem.ego, problem.vehicle
     v0 = max(ego.speed, 0.0)
     # no longer than the horizon drives at the start's speed (a profile past the end carries on straight)
