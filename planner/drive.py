@@ -138,7 +138,7 @@ class Driven:
         if self.result is not None:
             return self.result
         if self.fallback is None:
-            raise ValueError("a failed plan without what its fallback needs")  # a bug of _drive
+            raise ValueError("a failed plan without what its fallback needs")  # a bug of drive
         path, candidate, lateral, speed, planned = self.fallback
         return run.fallback(self.reason, path, candidate, lateral, speed, planned)
 
