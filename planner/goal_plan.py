@@ -158,8 +158,12 @@ def goal_setup(
         ego_in = bool(inside(goal.position, ego.x, ego.y))
     block = _block(goal, region, ego_s, ego_in, problem, allowed)
     speeds = goal.speed
-    stops = goal.position is not None and speeds is not None and speeds[0] <= 0.0
-    stops = stops and speeds is not None and speeds[1] < config.goal.stop_speed
+    stops = (
+        goal.position is not None
+        and speeds is not None
+        and speeds[0] <= 0.0
+        and speeds[1] < config.goal.stop_speed
+    )
     return GoalSetup(goal, region, ego_s, ego_in, cap, v_target, block, stops)
 
 

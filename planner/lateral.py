@@ -24,16 +24,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.bounds import LateralBounds, lateral_bounds, pass_left
-from planner.collision import FrenetBoxes, box_corners, box_hits, footprint_extent
+from planner.collision import FrenetBoxes, box_hits, footprint_extent
 from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
 from planner.ego import EgoFrenet
-from planner.frenet import to_frenet
 from planner.kinematics import body_centre, lateral_curvature
 from planner.lane import lane_bounds
 from planner.problem import Lane, PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Path, frenet_path
-from planner.validation import LANE_TOLERANCE, leaves_lane
+from planner.validation import leaves_lane, outside_lane
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
 from solvers.result import SolveInfo
 
@@ -67,6 +66,16 @@ def smoothed_slope(d: FloatArray, s: FloatArray, window: float) -> FloatArray:
     return np.asarray(np.convolve(padded, np.ones(width) / width, mode="valid"))
 
 
+def _slowed_speed_sq(
+    s: FloatArray, start: EgoFrenet, problem: PlanningProblem, braking_share: float
+) -> FloatArray:
+    """The squared speed [m²/s²] the vehicle can at best have slowed to at knots ``s`` [m], braking at
+    ``braking_share`` of its deceleration from its speed at ``start`` (negative where it stands before)."""
+    travelled = np.maximum(s - start.s, 0.0)
+    decel = braking_share * problem.vehicle.max_deceleration
+    return np.asarray(problem.ego.speed**2 - 2.0 * decel * travelled)
+
+
 def curvature_allowance(
     s: FloatArray,
     start: EgoFrenet,
@@ -80,8 +89,7 @@ def curvature_allowance(
     of its deceleration from ``v₀``: half, or all of it to swerve round a block too close to stop for
     comfortably), so that the speed profile can keep the lateral-acceleration limit."""
     v = problem.vehicle
-    travelled = np.maximum(s - start.s, 0.0)
-    v_sq = np.maximum(problem.ego.speed**2 - 2.0 * braking_share * v.max_deceleration * travelled, 1.0)
+    v_sq = np.maximum(_slowed_speed_sq(s, start, problem, braking_share), 1.0)
     return np.minimum(
         config.lateral.curvature_share * v.curvature_limit,
         lateral_curvature(config.limit_margin * v.max_lateral_acceleration / v_sq, v),
@@ -107,9 +115,7 @@ def curvature_rate_allowance(
     v = problem.vehicle
     if v.wheelbase is None or v.max_steering_rate is None:
         return None
-    travelled = np.maximum(s - start.s, 0.0)
-    slowed = problem.ego.speed**2 - 2.0 * braking_share * v.max_deceleration * travelled
-    speed = np.sqrt(np.maximum(slowed, 0.0))
+    speed = np.sqrt(np.maximum(_slowed_speed_sq(s, start, problem, braking_share), 0.0))
     rate = config.speed.steering_rate_share * v.max_steering_rate / v.wheelbase
     with np.errstate(divide="ignore"):
         return np.asarray(np.where(speed > 0.0, rate / np.maximum(speed, 1e-300), np.inf))
@@ -375,10 +381,7 @@ def _leaves_from(
     where the footprint leaves ``surface`` (at least 1), or None; None too where it starts outside (a
     vehicle coming back into its lane from the road)."""
     x, y = body_centre(path.x, path.y, path.heading, problem.vehicle)
-    first = box_corners(x[:1], y[:1], path.heading[:1], problem.vehicle.length, problem.vehicle.width)
-    fr = to_frenet(ref, first.reshape(-1, 2))
-    left, right = surface.widths(ref, fr.s)
-    if float(np.max(np.maximum(fr.d - left, -right - fr.d))) > LANE_TOLERANCE:
+    if outside_lane(ref, problem, x[:1], y[:1], path.heading[:1], surface)[0]:
         return None
     out = np.flatnonzero(leaves_lane(ref, problem, x, y, path.heading, surface) & (path.s < reach))
     return None if out.size == 0 else max(int(out[0]), 1)

@@ -48,8 +48,6 @@ def folds_back(ref: ReferenceLine, xy: ArrayLike) -> bool:
 
 #: tolerances of the trajectory checks
 _GEOMETRY_TOL = 1e-3  # [m]
-#: how far a footprint corner may be outside the lane before the lane check finds it out [m]
-LANE_TOLERANCE = _GEOMETRY_TOL
 _RATE_TOL = 1e-3  # relative, on limits
 #: the first point may be this far from the ego [m]
 _START_TOL = 0.05
@@ -210,6 +208,37 @@ def _first(t: FloatArray, where: NDArray[np.bool_]) -> float:
     return float(t[int(np.argmax(where))])
 
 
+def _lane_excess(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    x: FloatArray,
+    y: FloatArray,
+    heading: FloatArray,
+    surface: Lane | None,
+) -> FloatArray:
+    """Per pose and footprint corner (shape (N, 4)), how far [m] the corner is outside the lane
+    (``surface``, default the problem's lane), by TransF-κ; negative inside."""
+    vehicle = problem.vehicle
+    corners = box_corners(x, y, heading, vehicle.length, vehicle.width).reshape(-1, 2)
+    fr = to_frenet(ref, corners)
+    left, right = (problem.lane if surface is None else surface).widths(ref, fr.s)
+    return np.maximum(fr.d - left, -right - fr.d).reshape(-1, 4)
+
+
+def outside_lane(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    x: FloatArray,
+    y: FloatArray,
+    heading: FloatArray,
+    surface: Lane | None = None,
+) -> NDArray[np.bool_]:
+    """Per pose (the footprint's centre ``(x, y)`` [m], yaw ``heading`` [rad]), whether a corner of the
+    footprint is outside the lane (``surface``, default the problem's lane) beyond :data:`_GEOMETRY_TOL`,
+    the first pose included (unlike :func:`leaves_lane`)."""
+    return np.asarray(np.any(_lane_excess(ref, problem, x, y, heading, surface) > _GEOMETRY_TOL, axis=1))
+
+
 def leaves_lane(
     ref: ReferenceLine,
     problem: PlanningProblem,
@@ -222,12 +251,8 @@ def leaves_lane(
     footprint is outside the lane (``surface``, default the problem's lane: the road when it borrows) (by
     TransF-κ, beyond :data:`_GEOMETRY_TOL`). The first pose is a measurement: a vehicle already partly
     outside may not get further out until it has moved one length away."""
-    vehicle = problem.vehicle
-    corners = box_corners(x, y, heading, vehicle.length, vehicle.width).reshape(-1, 2)
-    fr = to_frenet(ref, corners)
-    left, right = (problem.lane if surface is None else surface).widths(ref, fr.s)
-    outside = np.maximum(fr.d - left, -right - fr.d).reshape(-1, 4)
-    near_start = np.hypot(x - x[0], y - y[0]) < vehicle.length
+    outside = _lane_excess(ref, problem, x, y, heading, surface)
+    near_start = np.hypot(x - x[0], y - y[0]) < problem.vehicle.length
     allowance = np.where(near_start, max(float(outside[0].max()), 0.0), 0.0)[:, None]
     return np.asarray(np.any(outside - allowance > _GEOMETRY_TOL, axis=1))
 
