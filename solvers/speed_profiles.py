@@ -137,13 +137,21 @@ def _steer(v: float, a: float, v_keep: float, dt: float, jmax: float, a_lo: floa
     return min(max((u - a) / dt, -jmax), jmax)
 
 
+def _step_count(steps: float) -> int:
+    """``⌈steps⌉`` (at least 0), or :data:`_MAX_BRAKING_STEPS` where that is more, infinite or NaN (an
+    extreme vehicle's ramp or stop: the braking is cut there anyway)."""
+    if not steps < _MAX_BRAKING_STEPS:
+        return _MAX_BRAKING_STEPS
+    return max(0, math.ceil(steps))
+
+
 def _brakes_within(problem: SpeedProblem, s: float, v: float, a: float) -> bool:
     """Whether full braking from ``(s, v, a)`` (``a → a_min`` at ``jerk_max``, then ``a_min`` to a stop, on
     the problem's grid) keeps ``v ≤ v_lim(s)`` at every knot until it stops."""
     dt, jmax, a_min = problem.dt, problem.jerk_max, problem.a_min
-    ramp = max(0, math.ceil((a - a_min) / (jmax * dt) - 1e-9))
+    ramp = _step_count((a - a_min) / (jmax * dt) - 1e-9)
     fastest = v + max(a, 0.0) * ramp * dt
-    steps = min(ramp + math.ceil(max(fastest, 0.0) / (-a_min * dt)) + 2, _MAX_BRAKING_STEPS)
+    steps = min(ramp + _step_count(max(fastest, 0.0) / (-a_min * dt)) + 2, _MAX_BRAKING_STEPS)
     accel = np.maximum(a - jmax * dt * np.arange(steps + 1), a_min)
     s_k, v_k, _ = integrate_jerk(dt, s, v, a, np.diff(accel) / dt)
     moving = v_k > 0.0
