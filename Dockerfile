@@ -30,12 +30,14 @@ RUN python -m pip install --no-cache-dir --require-hashes --only-binary=:all: -r
 # Then the service itself (app, planner, solvers; not planner_tools, the command line and its extras),
 # not editable, without further dependencies and built with the locked setuptools (no build
 # isolation: nothing fetched unpinned); `pip check` fails the build if pyproject.toml and the lock
-# disagree, and the last command if the tooling or its extra `tools` got in.
+# disagree, and the last command if the tooling or its extra `tools` got in. The `kappa-planner` console
+# script is the tooling's (planner_tools.cli): removed, so the image has no command that cannot import.
 COPY pyproject.toml README.md ./
 COPY app ./app
 COPY planner ./planner
 COPY solvers ./solvers
 RUN python -m pip install --no-cache-dir --no-deps --no-build-isolation . \
+    && rm "$VIRTUAL_ENV/bin/kappa-planner" \
     && python -m pip check \
     && python -c "import importlib.util, sys; \
         found = [m for m in ('planner_tools', 'matplotlib', 'PIL', 'tqdm') if importlib.util.find_spec(m)]; \
