@@ -96,14 +96,14 @@ class Run:
         speed: SolveInfo,
         profile: ProfileKind,
         violations: tuple[Violation, ...] = (),
-        stopped: bool = False,
+        stop_s: float | None = None,
         follower: UnescapedFollower | None = None,
     ) -> PlanResult:
-        """The answer, what it does with the goal (``stopped``: before a block), its diagnostics timed up
-        to now."""
+        """The answer, what it does with the goal (``stop_s``: it stops before a block, the footprint's
+        centre at this arc length [m] at most), its diagnostics timed up to now."""
         report = None
         if self.goal is not None:
-            report = judge(self.goal, traj, fallback=status == "fallback", stopped=stopped)
+            report = judge(self.goal, traj, fallback=status == "fallback", stop_s=stop_s)
         timing = self.timer.timing_ms()
         diag = PlanDiagnostics(
             self.stats,
@@ -182,9 +182,10 @@ def drive(run: Run, solvers: Solvers, lateral: LateralPlan, candidate: Path) -> 
     message = _message(lateral, start) + note
     if decision.borrows or (lateral.stops and decision.reason.kind is not ReasonKind.NO_ROAD):
         message += f"; {decision.reason.message}"  # why it leaves the lane, or why it stops in it
-    return Driven(
-        run.result(status, message, traj, lateral.info, sqp.info, profile.kind, stopped=lateral.stops)
-    )
+    stop_s = lateral.stop_s(run.config.stop_gap) if lateral.stops else None
+    if stop_s is not None:  # the planned point's stop; the centre is rear_offset ahead of a car's
+        stop_s += run.problem.vehicle.rear_offset
+    return Driven(run.result(status, message, traj, lateral.info, sqp.info, profile.kind, stop_s=stop_s))
 
 
 def _trajectory(

@@ -11,8 +11,9 @@ it holds makes the goal ``reached``. Otherwise:
 * inside the region, but only before the window opens: ``too_early``; only after it closes: ``too_far``;
   in the window but never at a speed in the range: ``speed_range`` — unless the vehicle is still inside
   at the horizon's end and the window is still open (``on_the_way``);
-* never inside: past the region beside it, ``missed``; standing before it at the horizon's end, or stopped
-  before a block, ``blocked``; a window that closes within the horizon, ``missed`` when the centre is
+* never inside: past the region beside it, ``missed``; standing before it at the horizon's end, or stopping
+  before a block that comes before the region's entry (a block beyond it leaves the region on the way),
+  ``blocked``; a window that closes within the horizon, ``missed`` when the centre is
   along the region (its ``s`` at least the region's ``s_in``) but beside it then, else ``too_far``; else
   ``on_the_way``.
 
@@ -53,9 +54,10 @@ def goal_holds(
     return np.asarray(place), np.asarray(when), np.asarray(pace)
 
 
-def judge(setup: GoalSetup, traj: Trajectory, *, fallback: bool, stopped: bool) -> GoalReport:
+def judge(setup: GoalSetup, traj: Trajectory, *, fallback: bool, stop_s: float | None = None) -> GoalReport:
     """What ``traj`` does with the goal (see the module docstring); ``fallback``: the answer is one,
-    ``stopped``: the plan stops before a block."""
+    ``stop_s``: the plan stops before a block, its centre at this arc length on the reference at most [m]
+    (None: no block)."""
     place, when, pace = goal_holds(setup, traj)
     met = np.flatnonzero(place & when & pace)
     if met.size:
@@ -80,8 +82,11 @@ def judge(setup: GoalSetup, traj: Trajectory, *, fallback: bool, stopped: bool) 
     region = setup.region
     if region is not None and float(np.max(traj.s)) > region.s_max:
         return _unreachable(GoalReason.MISSED, "the trajectory passes beside the region")
-    if stopped or traj.v[-1] < STANDING:
-        gap = "" if region is None else f", {region.s_in - float(traj.s[-1]):.1f} m before the region"
+    # a block beyond the region's entry stops the vehicle only after it has been inside
+    before = stop_s is not None and (region is None or not stop_s >= region.s_in)
+    if before or traj.v[-1] < STANDING:
+        where = stop_s if stop_s is not None and before else float(traj.s[-1])
+        gap = "" if region is None else f", {region.s_in - where:.1f} m before the region"
         return _unreachable(GoalReason.BLOCKED, f"the vehicle stops before the region{gap}")
     if not open_after:
         assert goal.time is not None  # for mypy: a window closes

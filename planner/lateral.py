@@ -439,6 +439,14 @@ class LateralPlan:
         """Whether the plan must stop before a block (one that is not the lane's end)."""
         return self.blocked is not None and not self.road_end
 
+    def stop_s(self, stop_gap: float) -> float | None:
+        """The farthest arc length on the reference [m] the planned point may reach before the block:
+        ``stop_gap`` [m] before the last free knot (the speed stage's stop, :func:`planner.speed.
+        stop_position`); None without a block."""
+        if self.blocked is None:
+            return None
+        return float(self.bounds.s[max(self.blocked - 1, 0)]) - stop_gap
+
     def stopping_at(self, s: float) -> LateralPlan:
         """The plan stopping before the first knot at or beyond ``s`` [m] if that comes before its own
         block (a line to wait at: :attr:`planner.decision.Decision.wait_at`)."""

@@ -234,8 +234,8 @@ def stop_position(
     """``σ_stop`` [m] along ``path``: ``stop_gap`` before the last free knot when the road is blocked,
     else the front (``front_extent`` [m] ahead of the planned point) ``stop_gap`` before the
     reference's end, and never past the path's end (it reaches a braking distance beyond the horizon)."""
-    if lateral.blocked is not None:  # the path may run on past the block: ≥ 3 knots
-        last_free = lateral.bounds.s[max(lateral.blocked - 1, 0)] - stop_gap
+    last_free = lateral.stop_s(stop_gap)
+    if last_free is not None:  # the path may run on past the block: ≥ 3 knots
         return max(float(np.interp(last_free, path.s, path.sigma, left=0.0)), 0.0)
     front = front_extent + stop_gap
     if ref.length - front < path.s[-1]:

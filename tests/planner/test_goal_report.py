@@ -90,6 +90,29 @@ def test_an_unreachable_goal_says_why(problem: PlanningProblem, reason: GoalReas
     assert message
 
 
+def _walled(wall_x: float, goal: Goal, model: str = "point") -> PlanningProblem:
+    """:func:`straight_problem` with ``goal`` and a wall across the road from ``wall_x`` [m]."""
+    wall = np.array([[wall_x, -4.0], [wall_x + 1.0, -4.0], [wall_x + 1.0, 4.0], [wall_x, 4.0]])
+    return replace(straight_problem(goal, model=model), obstacles=(PolygonObstacle("wall", wall),))
+
+
+@pytest.mark.parametrize("model", ["point", "car"])
+def test_a_block_beyond_the_regions_entry_leaves_the_goal_on_the_way(model: str) -> None:
+    # The plan stops before a wall 100 m ahead; the region begins 5 m before the wall, so the centre gets
+    # inside before the stop: out of the horizon's reach it is on the way, not blocked.
+    problem = _walled(EGO_X + 100.0, Goal(box(EGO_X + 95.0, EGO_X + 105.0, *LANE)), model)
+    result = plan(problem)
+    assert result.status == "stopped", result.message
+    status, reason, message = _judged(problem)
+    assert (status, reason) == (GoalStatus.ON_THE_WAY, None), message
+    # the same wall before the region's entry blocks it, and the message measures from the stop
+    blocked = _walled(EGO_X + 80.0, Goal(box(EGO_X + 95.0, EGO_X + 105.0, *LANE)), model)
+    status, reason, message = _judged(blocked)
+    assert (status, reason) == (GoalStatus.UNREACHABLE, GoalReason.BLOCKED), message
+    gap = float(message.rsplit(", ", 1)[1].split(" m ")[0])  # the region's entry less the stop
+    assert 15.0 + 0.5 * Vehicle().length < gap < 15.0 + 0.5 * Vehicle().length + 4.0, message
+
+
 def test_a_goal_out_of_the_horizon_is_on_the_way() -> None:
     assert _judged(straight_problem(Goal(box(300.0, 320.0, *LANE))))[0] is GoalStatus.ON_THE_WAY
     later = straight_problem(Goal(time=(20.0, 30.0), speed=(5.0, 6.0)))
