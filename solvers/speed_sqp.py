@@ -7,8 +7,9 @@ trial is dynamically feasible, since the dynamics are linear and the boxes conve
 the model agrees with the limit at the QP's solution, wherever the speed is at the limit, to ``tolerance``
 (100 × that at ``k = N``, a braking margin rather than a limit). ``s̄`` starts from the previous solution
 shifted in time (warm start) or from a forward–backward pass of the limit along the path, timed (cold
-start), raised to ``s_lower`` and a goal's lower bound and then capped by a goal's upper bound and by
-``s_bound`` (the upper bounds win there too).
+start), raised to ``s_lower`` and a goal's lower bound as far as the limit lets the vehicle get (the
+fastest such pass: a point it cannot reach would model the limit where the QP's profile is not) and then
+capped by a goal's upper bound and by ``s_bound`` (the upper bounds win there too).
 
 The problem is not convex, and at a sharp dip the SQP can end in a local minimum of the penalty function
 that violates the limit. So when the result violates the limit, ``v ≥ 0`` or ``s_bound`` although
@@ -83,55 +84,89 @@ Stop = Literal["converged", "max_iterations", "line_search", "qp_failed"]
 
 
 def _cap(problem: SpeedProblem, s_bar: FloatArray) -> FloatArray:
-    """``s_bar`` (relative to s0) raised to ``s_lower`` and a goal's lower bound at and before each knot,
-    then capped by a goal's upper bound and then by the bounds at and ahead of each knot (the upper bounds
-    win, the hard ones last), non-decreasing, ≥ 0."""
+    """``s_bar`` (relative to s0) raised to ``s_lower`` and a goal's lower bound at and before each knot, as
+    far as the limit lets the vehicle get by then (:func:`_reach`), then capped by a goal's upper bound and
+    then by the bounds at and ahead of each knot (the upper bounds win, the hard ones last), non-decreasing,
+    ≥ 0.
+
+    The raise stops at the reach because the QP models the limit around ``s_bar``: linearised where the
+    vehicle cannot be, on the rising side of a dip, the model falls steeply back towards where the vehicle
+    is, and its slack's penalty then pays for driving faster, through the dip, by far more than the limit
+    there costs (12 m/s over the limit after two QPs, towards a goal beyond a tight bend)."""
     tables = problem.tables
-    if tables.has_lower:
-        s_bar = np.maximum(s_bar, np.maximum.accumulate(tables.lower - problem.s0))
+    if tables.has_lower or tables.has_goal:
+        floor = np.maximum.accumulate(np.maximum(tables.lower, tables.goal_lo) - problem.s0)
+        s_bar = np.maximum(s_bar, np.minimum(floor, _reach(problem)))
     if tables.has_goal:
-        s_bar = np.maximum(s_bar, np.maximum.accumulate(tables.goal_lo - problem.s0))
         s_bar = np.minimum(s_bar, np.minimum.accumulate((tables.goal_hi - problem.s0)[::-1])[::-1])
     s_bar = np.minimum(s_bar, tables.s_bound - problem.s0)
     s_bar = np.minimum.accumulate(s_bar[::-1])[::-1]
     return np.maximum(s_bar, 0.0)
 
 
-def _cold_start(problem: SpeedProblem) -> tuple[FloatArray, float]:
-    """Guesses of ``s_k − s0`` and ``v_N``: a forward–backward pass of the limit along the path, timed.
+@dataclass(frozen=True)
+class _Pass:
+    """A speed along the path and the time it takes: ``speed`` [m/s] at ``sigma = s − s0`` [m] (from 0 to
+    ``sigma[-1]``), reached at ``time`` [s]."""
 
-    Along ``σ = s − s0`` the speed ``min(v_target, v_lim)`` (0 at ``s_stop``) is lowered to what braking at
-    ``a_min/2`` ahead of every point and accelerating at ``a_max/2`` from ``v0`` allow (running minima of
-    ``v² ± 2aσ``), but not below braking from ``v0`` at ``a_min``; the time along it is sampled at ``t_k``.
-    """
+    sigma: FloatArray
+    speed: FloatArray
+    time: FloatArray
+
+    def positions(self, t: FloatArray) -> FloatArray:
+        """``σ`` [m] at the times ``t`` [s]; beyond the pass's end at its last speed."""
+        sigma = np.interp(t, self.time, self.sigma)
+        beyond = t > self.time[-1]
+        sigma[beyond] = self.sigma[-1] + self.speed[-1] * (t[beyond] - self.time[-1])
+        return sigma
+
+
+def _timed_pass(problem: SpeedProblem, v_cap: float, brake: float, accel: float) -> _Pass | None:
+    """A forward–backward pass of the limit along the path, timed: along ``σ = s − s0`` the speed
+    ``min(v_cap, v_lim)`` (0 at ``s_stop``) lowered to what braking at ``brake`` [m/s², > 0] ahead of
+    every point and accelerating at ``accel`` [m/s², > 0] from ``v0`` allow (running minima of ``v² ±
+    2aσ``), but not below braking from ``v0`` at ``a_min``. None when the stop is at ``s0``."""
     n, dt = problem.steps, problem.dt
     stop = problem.s_stop - problem.s0
     reach = n * dt * max(problem.v0, problem.v_target, float(np.max(problem.limit_v))) + 1.0
     end = min(reach, stop)
     if end <= 1e-6:
-        return np.zeros(n + 1), 0.0
+        return None
     sigma = np.linspace(0.0, end, _GUESS_POINTS)
-    v_cap = np.minimum(np.interp(problem.s0 + sigma, problem.limit_s, problem.limit_v), problem.v_target)
+    speed_cap = np.minimum(np.interp(problem.s0 + sigma, problem.limit_s, problem.limit_v), v_cap)
     if stop <= reach:
-        v_cap[-1] = 0.0
-    brake, accel = -0.5 * problem.a_min, max(0.5 * problem.a_max, 1e-3)
-    v2 = np.minimum.accumulate((v_cap**2 + 2 * brake * sigma)[::-1])[::-1] - 2 * brake * sigma
+        speed_cap[-1] = 0.0
+    v2 = np.minimum.accumulate((speed_cap**2 + 2 * brake * sigma)[::-1])[::-1] - 2 * brake * sigma
     v2 = np.minimum(v2, np.minimum.accumulate(v2 - 2 * accel * sigma) + 2 * accel * sigma)
     v2 = np.minimum(v2, problem.v0**2 + 2 * accel * sigma)
     v2 = np.maximum(v2, problem.v0**2 + 2 * problem.a_min * sigma)
     speed = np.sqrt(np.maximum(v2, 0.0))
     mean = 0.5 * (speed[1:] + speed[:-1])
-    t_of_sigma = np.concatenate([[0.0], np.cumsum(np.diff(sigma) / np.maximum(mean, 1e-3))])
-    t = problem.t
-    s_bar = np.interp(t, t_of_sigma, sigma)
-    beyond = t > t_of_sigma[-1]
-    s_bar[beyond] = end + speed[-1] * (t[beyond] - t_of_sigma[-1])
-    s_bar = _cap(problem, s_bar)
-    v_end = float(np.interp(s_bar[-1], sigma, speed))
+    time_of = np.concatenate([[0.0], np.cumsum(np.diff(sigma) / np.maximum(mean, 1e-3))])
+    return _Pass(sigma, speed, time_of)
+
+
+def _reach(problem: SpeedProblem) -> FloatArray:
+    """About how far [m] from s0 the vehicle can get by each knot within the limit: the fastest
+    :func:`_timed_pass` (``a_max`` and ``a_min`` in full, no target; the jerk limit aside)."""
+    fastest = _timed_pass(problem, math.inf, -problem.a_min, max(problem.a_max, 1e-3))
+    if fastest is None:
+        return np.zeros(problem.steps + 1)
+    return fastest.positions(problem.t)
+
+
+def _cold_start(problem: SpeedProblem) -> tuple[FloatArray, float]:
+    """Guesses of ``s_k − s0`` and ``v_N``: :func:`_timed_pass` of ``min(v_target, v_lim)`` braking at
+    ``a_min/2`` and accelerating at ``a_max/2``, sampled at ``t_k``."""
+    guess = _timed_pass(problem, problem.v_target, -0.5 * problem.a_min, max(0.5 * problem.a_max, 1e-3))
+    if guess is None:
+        return np.zeros(problem.steps + 1), 0.0
+    s_bar = _cap(problem, guess.positions(problem.t))
+    v_end = float(np.interp(s_bar[-1], guess.sigma, guess.speed))
     terms = end_terms(problem, problem.s0 + float(s_bar[-1]))
     if terms.rate is not None and terms.bound is not None and problem.s0 + s_bar[-1] >= terms.bound - 1e-6:
         v_end = min(v_end, terms.rate)  # held at the moving bound: its speed
-    if s_bar[-1] >= stop - 1e-6:
+    if s_bar[-1] >= problem.s_stop - problem.s0 - 1e-6:
         v_end = 0.0  # held at the stop
     return s_bar, v_end
 
