@@ -12,10 +12,11 @@ fastest such pass: a point it cannot reach would model the limit where the QP's 
 capped by a goal's upper bound and by ``s_bound`` (the upper bounds win there too).
 
 The problem is not convex, and at a sharp dip the SQP can end in a local minimum of the penalty function
-that violates the limit. So when the result violates the limit, ``v ≥ 0`` or ``s_bound`` although
-:func:`~solvers.speed_profiles.braking_profile` (a full stop) meets them (``s_lower`` and a goal's bounds
-aside: a full stop rarely keeps ahead of anything), the SQP runs once more from that stop and the result
-with the lower penalty function is kept. A QP that HPIPM stops early (iteration limit, minimum step) is
+that violates the limit. So when the result violates the limit, ``v ≥ 0`` or ``s_bound`` by more than
+:func:`~solvers.speed_profiles.braking_profile` (a full stop) does (``s_lower`` and a goal's bounds aside: a
+full stop rarely keeps ahead of anything), the SQP runs once more from that stop and the result with the
+lower penalty function is kept; a violation the stop would avoid that still remains is reported
+(``violation_remains``), never ``solved``. A QP that HPIPM stops early (iteration limit, minimum step) is
 used if its iterate is finite and within the boxes, never as converged. The returned profile is
 re-integrated from the jerks with the dynamics, so it meets them to rounding error whatever the QP's
 accuracy.
@@ -26,7 +27,7 @@ Statuses (:class:`~solvers.result.SolverStatus`):
   would avoid;
 * ``solved_inaccurate``: the best iterate, a valid profile whose violations are reported truthfully, when
   the model converged at a QP that HPIPM stopped early, when the line search found no decrease, when a
-  later QP failed, or when a violation remains although a full stop meets every constraint;
+  later QP failed, or when it converged with a violation a full stop would avoid (``violation_remains``);
 * ``max_iterations``: the best iterate after ``max_iterations`` QPs without convergence (it happens where a
   sharp convex kink of ``v_lim``, a V-shaped dip, has to be crossed by many knots, one or two per
   iteration);
@@ -74,10 +75,9 @@ _END_TOLERANCE_FACTOR = 100.0
 _MERIT_SLACK = 1e-6
 #: violations below this are rounding, not worth a word in the message
 _REPORTED_VIOLATION = 1e-6
-#: a violation above this is checked against a full stop, and the SQP restarted from it if that meets all
+#: a violation above this is checked against a full stop's, and the SQP restarted from the stop if that
+#: violates less by more than this
 _RESTORE_VIOLATION = 1e-4
-#: a full stop "meets every constraint" when it violates none by more than this
-_STOP_FEASIBLE = 1e-9
 
 #: why an SQP run stopped
 Stop = Literal["converged", "max_iterations", "line_search", "qp_failed"]
@@ -253,8 +253,8 @@ class SpeedSolver:
     :class:`~solvers.speed_qp.HpipmStatus` flag, −1 for none), ``qp_error`` (CasADi's error when a QP
     raised, else empty), ``stop`` (why the kept run stopped: ``converged``, ``max_iterations``,
     ``line_search`` or ``qp_failed``), ``restarts`` (SQP runs from a full stop), ``restarted`` (the profile
-    comes from such a run), ``violation_remains`` (a violation above ``restore_violation`` although a full
-    stop meets every constraint) and ``returned`` (``"solution"`` or ``"braking_profile"``).
+    comes from such a run), ``violation_remains`` (a violation more than ``restore_violation`` above a full
+    stop's: one the profile did not need) and ``returned`` (``"solution"`` or ``"braking_profile"``).
 
     Args:
         max_iterations: QPs per solve (SQP iterations), ≥ 1.
@@ -262,8 +262,8 @@ class SpeedSolver:
             counts as converged [m/s], > 0.
         max_cached: number of built QPs kept, ≥ 1.
         restore_violation: a violation [m/s or m] above which the SQP restarts from a full stop (when
-            that meets every constraint); a caller that checks the profile anyway can save the second
-            run by raising it.
+            that violates less by more than this); a caller that checks the profile anyway can save the
+            second run by raising it.
         qp_residual: HPIPM's residual tolerance per QP (:class:`~solvers.speed_qp.HpipmSettings`), in (0, 1).
     """
 
@@ -346,20 +346,22 @@ class SpeedSolver:
         notes = first.notes
         restarted = violation_remains = False
         if first.best is not None and _max_violation(problem, first.best) > self._restore_violation:
-            # a violation although a full stop meets every constraint: a local minimum of the penalty
-            # function (a sharp V-shaped dip of v_lim can hold one); try again from the full stop
+            # a violation a full stop avoids (or keeps smaller): a local minimum of the penalty function (a
+            # sharp V-shaped dip of v_lim can hold one); try again from the full stop
             stop = braking_profile(problem)
             s_stop, v_stop, a_stop = integrate_jerk(problem.dt, 0.0, problem.v0, problem.a0, stop)
-            if _max_violation(problem, _Iterate(stop, s_stop, v_stop, a_stop, 0.0)) <= _STOP_FEASIBLE:
+            needed = _max_violation(problem, _Iterate(stop, s_stop, v_stop, a_stop, 0.0))
+            if _max_violation(problem, first.best) > needed + self._restore_violation:
                 retry = self._sqp(problem, qp, s_stop, 0.0, self._max_iterations)
                 runs.append(retry)
                 if retry.best is not None and retry.best.merit < first.best.merit:
                     kept, restarted = retry, True
                     notes = [*retry.notes, "restarted from a full stop after a violation it did not need"]
                 assert kept.best is not None  # for mypy: the first run's, or a better one
-                violation_remains = _max_violation(problem, kept.best) > self._restore_violation
+                excess = _max_violation(problem, kept.best)
+                violation_remains = excess > needed + self._restore_violation
                 if violation_remains:
-                    notes.append("a violation remains although a full stop meets every constraint")
+                    notes.append(f"a violation of {excess:.3g} remains where a full stop needs {needed:.3g}")
         qp_solves = sum(run.qp_solves for run in runs)
         ipm_iterations = sum(run.ipm_iterations for run in runs)
 

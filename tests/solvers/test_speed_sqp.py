@@ -709,3 +709,25 @@ def test_a_lower_bound_out_of_reach_does_not_pull_the_profile_over_the_limit(bey
         assert result.speed_violation <= _stop_excess(problem) + 1e-3
         assert result.speed_violation <= solver.solve(plain).speed_violation + 1e-3
     assert result.goal_violation > 5.0 or result.follower_violation > 5.0  # missed, and reported
+
+
+def test_a_violation_a_full_stop_would_avoid_is_never_solved(monkeypatch: pytest.MonkeyPatch) -> None:
+    """QPs that keep the speed (zero jerk) into the bend: the model converges at that profile, 12 m/s over
+    the limit where a full stop needs 3.5. The SQP restarts from the stop (which cannot keep the limit
+    either), and a violation it did not need is reported, never ``solved``."""
+
+    def cruise(self: SpeedQP) -> tuple[int, int]:
+        self.x.fill(0.0)
+        self.lam_g.fill(0.0)
+        return HpipmStatus.SUCCESS, 1
+
+    monkeypatch.setattr(SpeedQP, "solve", cruise)
+    problem = make_problem(**_BEND)
+    needed = _stop_excess(problem)
+    result = SpeedSolver(max_iterations=2).solve(problem)
+    assert_valid(problem, result)
+    assert np.all(result.jerk == 0.0) and result.speed_violation > needed + 5.0
+    assert result.info.extras["stop"] == "converged" and result.info.extras["restarts"] == 1
+    assert result.info.status is SolverStatus.SOLVED_INACCURATE and result.info.usable
+    assert result.info.extras["violation_remains"] is True
+    assert f"a full stop needs {needed:.3g}" in result.info.message
