@@ -128,13 +128,13 @@ def _timed_pass(problem: SpeedProblem, v_cap: float, brake: float, accel: float)
     2aσ``), but not below braking from ``v0`` at ``a_min``. None when the stop is at ``s0``."""
     n, dt = problem.steps, problem.dt
     stop = problem.s_stop - problem.s0
-    reach = n * dt * max(problem.v0, problem.v_target, float(np.max(problem.limit_v))) + 1.0
-    end = min(reach, stop)
+    farthest = n * dt * max(problem.v0, problem.v_target, float(np.max(problem.limit_v))) + 1.0
+    end = min(farthest, stop)
     if end <= 1e-6:
         return None
     sigma = np.linspace(0.0, end, _GUESS_POINTS)
     speed_cap = np.minimum(np.interp(problem.s0 + sigma, problem.limit_s, problem.limit_v), v_cap)
-    if stop <= reach:
+    if stop <= farthest:
         speed_cap[-1] = 0.0
     v2 = np.minimum.accumulate((speed_cap**2 + 2 * brake * sigma)[::-1])[::-1] - 2 * brake * sigma
     v2 = np.minimum(v2, np.minimum.accumulate(v2 - 2 * accel * sigma) + 2 * accel * sigma)
