@@ -7,14 +7,16 @@ trial is dynamically feasible, since the dynamics are linear and the boxes conve
 the model agrees with the limit at the QP's solution, wherever the speed is at the limit, to ``tolerance``
 (100 × that at ``k = N``, a braking margin rather than a limit). ``s̄`` starts from the previous solution
 shifted in time (warm start) or from a forward–backward pass of the limit along the path, timed (cold
-start), raised to ``s_lower`` and a goal's lower bound and then capped by a goal's upper bound and by
-``s_bound`` (the upper bounds win there too).
+start), raised to ``s_lower`` and a goal's lower bound as far as the limit lets the vehicle get (the
+fastest such pass: a point it cannot reach would model the limit where the QP's profile is not) and then
+capped by a goal's upper bound and by ``s_bound`` (the upper bounds win there too).
 
 The problem is not convex, and at a sharp dip the SQP can end in a local minimum of the penalty function
-that violates the limit. So when the result violates the limit, ``v ≥ 0`` or ``s_bound`` although
-:func:`~solvers.speed_profiles.braking_profile` (a full stop) meets them (``s_lower`` and a goal's bounds
-aside: a full stop rarely keeps ahead of anything), the SQP runs once more from that stop and the result
-with the lower penalty function is kept. A QP that HPIPM stops early (iteration limit, minimum step) is
+that violates the limit. So when the result violates the limit, ``v ≥ 0`` or ``s_bound`` by more than
+:func:`~solvers.speed_profiles.braking_profile` (a full stop) does (``s_lower`` and a goal's bounds aside: a
+full stop rarely keeps ahead of anything), the SQP runs once more from that stop and the result with the
+lower penalty function is kept; a violation the stop would avoid that still remains is reported
+(``violation_remains``), never ``solved``. A QP that HPIPM stops early (iteration limit, minimum step) is
 used if its iterate is finite and within the boxes, never as converged. The returned profile is
 re-integrated from the jerks with the dynamics, so it meets them to rounding error whatever the QP's
 accuracy.
@@ -25,7 +27,7 @@ Statuses (:class:`~solvers.result.SolverStatus`):
   would avoid;
 * ``solved_inaccurate``: the best iterate, a valid profile whose violations are reported truthfully, when
   the model converged at a QP that HPIPM stopped early, when the line search found no decrease, when a
-  later QP failed, or when a violation remains although a full stop meets every constraint;
+  later QP failed, or when it converged with a violation a full stop would avoid (``violation_remains``);
 * ``max_iterations``: the best iterate after ``max_iterations`` QPs without convergence (it happens where a
   sharp convex kink of ``v_lim``, a V-shaped dip, has to be crossed by many knots, one or two per
   iteration);
@@ -73,65 +75,98 @@ _END_TOLERANCE_FACTOR = 100.0
 _MERIT_SLACK = 1e-6
 #: violations below this are rounding, not worth a word in the message
 _REPORTED_VIOLATION = 1e-6
-#: a violation above this is checked against a full stop, and the SQP restarted from it if that meets all
+#: a violation above this is checked against a full stop's, and the SQP restarted from the stop if that
+#: violates less by more than this
 _RESTORE_VIOLATION = 1e-4
-#: a full stop "meets every constraint" when it violates none by more than this
-_STOP_FEASIBLE = 1e-9
 
 #: why an SQP run stopped
 Stop = Literal["converged", "max_iterations", "line_search", "qp_failed"]
 
 
 def _cap(problem: SpeedProblem, s_bar: FloatArray) -> FloatArray:
-    """``s_bar`` (relative to s0) raised to ``s_lower`` and a goal's lower bound at and before each knot,
-    then capped by a goal's upper bound and then by the bounds at and ahead of each knot (the upper bounds
-    win, the hard ones last), non-decreasing, ≥ 0."""
+    """``s_bar`` (relative to s0) raised to ``s_lower`` and a goal's lower bound at and before each knot, as
+    far as the limit lets the vehicle get by then (:func:`_reach`), then capped by a goal's upper bound and
+    then by the bounds at and ahead of each knot (the upper bounds win, the hard ones last), non-decreasing,
+    ≥ 0.
+
+    The raise stops at the reach because the QP models the limit around ``s_bar``: linearised where the
+    vehicle cannot be, on the rising side of a dip, the model falls steeply back towards where the vehicle
+    is, and its slack's penalty then pays for driving faster, through the dip, by far more than the limit
+    there costs (12 m/s over the limit after two QPs, towards a goal beyond a tight bend)."""
     tables = problem.tables
-    if tables.has_lower:
-        s_bar = np.maximum(s_bar, np.maximum.accumulate(tables.lower - problem.s0))
+    if tables.has_lower or tables.has_goal:
+        floor = np.maximum.accumulate(np.maximum(tables.lower, tables.goal_lo) - problem.s0)
+        s_bar = np.maximum(s_bar, np.minimum(floor, _reach(problem)))
     if tables.has_goal:
-        s_bar = np.maximum(s_bar, np.maximum.accumulate(tables.goal_lo - problem.s0))
         s_bar = np.minimum(s_bar, np.minimum.accumulate((tables.goal_hi - problem.s0)[::-1])[::-1])
     s_bar = np.minimum(s_bar, tables.s_bound - problem.s0)
     s_bar = np.minimum.accumulate(s_bar[::-1])[::-1]
     return np.maximum(s_bar, 0.0)
 
 
-def _cold_start(problem: SpeedProblem) -> tuple[FloatArray, float]:
-    """Guesses of ``s_k − s0`` and ``v_N``: a forward–backward pass of the limit along the path, timed.
+@dataclass(frozen=True)
+class _Pass:
+    """A speed along the path and the time it takes: ``speed`` [m/s] at ``sigma = s − s0`` [m] (from 0 to
+    ``sigma[-1]``), reached at ``time`` [s]."""
 
-    Along ``σ = s − s0`` the speed ``min(v_target, v_lim)`` (0 at ``s_stop``) is lowered to what braking at
-    ``a_min/2`` ahead of every point and accelerating at ``a_max/2`` from ``v0`` allow (running minima of
-    ``v² ± 2aσ``), but not below braking from ``v0`` at ``a_min``; the time along it is sampled at ``t_k``.
-    """
+    sigma: FloatArray
+    speed: FloatArray
+    time: FloatArray
+
+    def positions(self, t: FloatArray) -> FloatArray:
+        """``σ`` [m] at the times ``t`` [s]; beyond the pass's end at its last speed."""
+        sigma = np.interp(t, self.time, self.sigma)
+        beyond = t > self.time[-1]
+        sigma[beyond] = self.sigma[-1] + self.speed[-1] * (t[beyond] - self.time[-1])
+        return sigma
+
+
+def _timed_pass(problem: SpeedProblem, v_cap: float, brake: float, accel: float) -> _Pass | None:
+    """A forward–backward pass of the limit along the path, timed: along ``σ = s − s0`` the speed
+    ``min(v_cap, v_lim)`` (0 at ``s_stop``) lowered to what braking at ``brake`` [m/s², > 0] ahead of
+    every point and accelerating at ``accel`` [m/s², > 0] from ``v0`` allow (running minima of ``v² ±
+    2aσ``), but not below braking from ``v0`` at ``a_min``. None when the stop is at ``s0``."""
     n, dt = problem.steps, problem.dt
     stop = problem.s_stop - problem.s0
-    reach = n * dt * max(problem.v0, problem.v_target, float(np.max(problem.limit_v))) + 1.0
-    end = min(reach, stop)
+    farthest = n * dt * max(problem.v0, problem.v_target, float(np.max(problem.limit_v))) + 1.0
+    end = min(farthest, stop)
     if end <= 1e-6:
-        return np.zeros(n + 1), 0.0
+        return None
     sigma = np.linspace(0.0, end, _GUESS_POINTS)
-    v_cap = np.minimum(np.interp(problem.s0 + sigma, problem.limit_s, problem.limit_v), problem.v_target)
-    if stop <= reach:
-        v_cap[-1] = 0.0
-    brake, accel = -0.5 * problem.a_min, max(0.5 * problem.a_max, 1e-3)
-    v2 = np.minimum.accumulate((v_cap**2 + 2 * brake * sigma)[::-1])[::-1] - 2 * brake * sigma
+    speed_cap = np.minimum(np.interp(problem.s0 + sigma, problem.limit_s, problem.limit_v), v_cap)
+    if stop <= farthest:
+        speed_cap[-1] = 0.0
+    v2 = np.minimum.accumulate((speed_cap**2 + 2 * brake * sigma)[::-1])[::-1] - 2 * brake * sigma
     v2 = np.minimum(v2, np.minimum.accumulate(v2 - 2 * accel * sigma) + 2 * accel * sigma)
     v2 = np.minimum(v2, problem.v0**2 + 2 * accel * sigma)
     v2 = np.maximum(v2, problem.v0**2 + 2 * problem.a_min * sigma)
     speed = np.sqrt(np.maximum(v2, 0.0))
     mean = 0.5 * (speed[1:] + speed[:-1])
-    t_of_sigma = np.concatenate([[0.0], np.cumsum(np.diff(sigma) / np.maximum(mean, 1e-3))])
-    t = problem.t
-    s_bar = np.interp(t, t_of_sigma, sigma)
-    beyond = t > t_of_sigma[-1]
-    s_bar[beyond] = end + speed[-1] * (t[beyond] - t_of_sigma[-1])
-    s_bar = _cap(problem, s_bar)
-    v_end = float(np.interp(s_bar[-1], sigma, speed))
+    time_of = np.concatenate([[0.0], np.cumsum(np.diff(sigma) / np.maximum(mean, 1e-3))])
+    return _Pass(sigma, speed, time_of)
+
+
+def _reach(problem: SpeedProblem) -> FloatArray:
+    """About how far [m] from s0 the vehicle can get by each knot within the limit: the fastest
+    :func:`_timed_pass` (``a_max`` and ``a_min`` in full, no target; the jerk limit aside)."""
+    fastest = _timed_pass(problem, math.inf, -problem.a_min, max(problem.a_max, 1e-3))
+    if fastest is None:
+        return np.zeros(problem.steps + 1)
+    return fastest.positions(problem.t)
+
+
+def _cold_start(problem: SpeedProblem) -> tuple[FloatArray, float]:
+    """Guesses of ``s_k − s0`` and ``v_N``: :func:`_timed_pass` of ``min(v_target, v_lim)`` braking at
+    ``a_min/2`` and accelerating at ``a_max/2``, sampled at ``t_k``."""
+    guess = _timed_pass(problem, problem.v_target, -0.5 * problem.a_min, max(0.5 * problem.a_max, 1e-3))
+    if guess is None:
+        return np.zeros(problem.steps + 1), 0.0
+    s_bar = _cap(problem, guess.positions(problem.t))
+    v_end = float(np.interp(s_bar[-1], guess.sigma, guess.speed))
     terms = end_terms(problem, problem.s0 + float(s_bar[-1]))
     if terms.rate is not None and terms.bound is not None and problem.s0 + s_bar[-1] >= terms.bound - 1e-6:
         v_end = min(v_end, terms.rate)  # held at the moving bound: its speed
-    if s_bar[-1] >= stop - 1e-6:
+    if s_bar[-1] >= problem.s_stop - problem.s0 - 1e-6:
         v_end = 0.0  # held at the stop
     return s_bar, v_end
 
@@ -218,8 +253,8 @@ class SpeedSolver:
     :class:`~solvers.speed_qp.HpipmStatus` flag, −1 for none), ``qp_error`` (CasADi's error when a QP
     raised, else empty), ``stop`` (why the kept run stopped: ``converged``, ``max_iterations``,
     ``line_search`` or ``qp_failed``), ``restarts`` (SQP runs from a full stop), ``restarted`` (the profile
-    comes from such a run), ``violation_remains`` (a violation above ``restore_violation`` although a full
-    stop meets every constraint) and ``returned`` (``"solution"`` or ``"braking_profile"``).
+    comes from such a run), ``violation_remains`` (a violation more than ``restore_violation`` above a full
+    stop's: one the profile did not need) and ``returned`` (``"solution"`` or ``"braking_profile"``).
 
     Args:
         max_iterations: QPs per solve (SQP iterations), ≥ 1.
@@ -227,8 +262,8 @@ class SpeedSolver:
             counts as converged [m/s], > 0.
         max_cached: number of built QPs kept, ≥ 1.
         restore_violation: a violation [m/s or m] above which the SQP restarts from a full stop (when
-            that meets every constraint); a caller that checks the profile anyway can save the second
-            run by raising it.
+            that violates less by more than this); a caller that checks the profile anyway can save the
+            second run by raising it.
         qp_residual: HPIPM's residual tolerance per QP (:class:`~solvers.speed_qp.HpipmSettings`), in (0, 1).
     """
 
@@ -311,20 +346,22 @@ class SpeedSolver:
         notes = first.notes
         restarted = violation_remains = False
         if first.best is not None and _max_violation(problem, first.best) > self._restore_violation:
-            # a violation although a full stop meets every constraint: a local minimum of the penalty
-            # function (a sharp V-shaped dip of v_lim can hold one); try again from the full stop
+            # a violation a full stop avoids (or keeps smaller): a local minimum of the penalty function (a
+            # sharp V-shaped dip of v_lim can hold one); try again from the full stop
             stop = braking_profile(problem)
             s_stop, v_stop, a_stop = integrate_jerk(problem.dt, 0.0, problem.v0, problem.a0, stop)
-            if _max_violation(problem, _Iterate(stop, s_stop, v_stop, a_stop, 0.0)) <= _STOP_FEASIBLE:
+            needed = _max_violation(problem, _Iterate(stop, s_stop, v_stop, a_stop, 0.0))
+            if _max_violation(problem, first.best) > needed + self._restore_violation:
                 retry = self._sqp(problem, qp, s_stop, 0.0, self._max_iterations)
                 runs.append(retry)
                 if retry.best is not None and retry.best.merit < first.best.merit:
                     kept, restarted = retry, True
                     notes = [*retry.notes, "restarted from a full stop after a violation it did not need"]
                 assert kept.best is not None  # for mypy: the first run's, or a better one
-                violation_remains = _max_violation(problem, kept.best) > self._restore_violation
+                excess = _max_violation(problem, kept.best)
+                violation_remains = excess > needed + self._restore_violation
                 if violation_remains:
-                    notes.append("a violation remains although a full stop meets every constraint")
+                    notes.append(f"a violation of {excess:.3g} remains where a full stop needs {needed:.3g}")
         qp_solves = sum(run.qp_solves for run in runs)
         ipm_iterations = sum(run.ipm_iterations for run in runs)
 

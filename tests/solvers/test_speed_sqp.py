@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from solvers.result import SolverStatus
-from solvers.speed_cost import end_speed_limit, objective
+from solvers.speed_cost import end_speed_limit, objective, speed_limit
 from solvers.speed_problem import SpeedProblem, SpeedWeights, integrate_jerk
 from solvers.speed_profiles import braking_profile
 from solvers.speed_qp import HpipmStatus, SpeedQP
@@ -664,3 +664,70 @@ def test_an_unused_goal_changes_nothing() -> None:
     result = solver.solve(loose)
     assert solver.build_count == 2
     assert np.max(np.abs(result.s - reference.s)) < 1e-3 and result.goal_violation == 0.0  # QP tolerance
+
+
+def _stop_excess(problem: SpeedProblem) -> float:
+    """How far a full stop (:func:`braking_profile`) exceeds the limit [m/s]: no profile has to exceed it
+    by more."""
+    s, v, _ = integrate_jerk(problem.dt, problem.s0, problem.v0, problem.a0, braking_profile(problem))
+    return float(np.max(v[1:] - speed_limit(problem, s[1:])[0]))
+
+
+#: 20 m/s into a bend of 8 m/s from s = 19 to 45 m, then 23 m/s from 50 m on (the planner's budget: 2 QPs)
+_BEND = {
+    "v0": 20.0,
+    "v_target": 20.0,
+    "a_min": -8.0,
+    "a_max": 3.0,
+    "jerk_max": 30.0,
+    "limit_s": [0.0, 15.0, 19.0, 45.0, 50.0, 1000.0],
+    "limit_v": [20.0, 20.0, 8.0, 8.0, 23.0, 23.0],
+}
+
+
+@pytest.mark.parametrize(
+    "beyond",
+    [
+        {"goal_lower": _at(20, 49.0, -math.inf)},  # a goal 49 m ahead by 2 s: past the bend, out of reach
+        {"goal_lower": _at(20, 60.0, -math.inf)},
+        {"s_lower": np.concatenate(([0.0], 20.0 * _T[1:]))},  # a follower that keeps 20 m/s through it
+    ],
+    ids=["goal-49m", "goal-60m", "follower"],
+)
+def test_a_lower_bound_out_of_reach_does_not_pull_the_profile_over_the_limit(beyond: dict[str, Any]) -> None:
+    """A lower bound beyond a bend the vehicle cannot take at speed: the profile keeps the limit as well as
+    a full stop does, within the planner's two QPs (the cold start once linearised the limit at the bound,
+    where the vehicle cannot be, and the QP's slack then paid for 12.8 m/s over the limit in the bend)."""
+    problem = make_problem(**_BEND, **beyond)
+    plain = make_problem(**_BEND)
+    for solver in (SpeedSolver(max_iterations=2, tolerance=1e-3, qp_residual=1e-6), SOLVER):
+        result = solver.solve(problem)
+        assert_valid(problem, result)
+        assert result.info.usable
+        # the bend's entry cannot be kept (a full stop exceeds the limit there too), but by no more
+        assert _stop_excess(problem) > 1.0
+        assert result.speed_violation <= _stop_excess(problem) + 1e-3
+        assert result.speed_violation <= solver.solve(plain).speed_violation + 1e-3
+    assert result.goal_violation > 5.0 or result.follower_violation > 5.0  # missed, and reported
+
+
+def test_a_violation_a_full_stop_would_avoid_is_never_solved(monkeypatch: pytest.MonkeyPatch) -> None:
+    """QPs that keep the speed (zero jerk) into the bend: the model converges at that profile, 12 m/s over
+    the limit where a full stop needs 3.5. The SQP restarts from the stop (which cannot keep the limit
+    either), and a violation it did not need is reported, never ``solved``."""
+
+    def cruise(self: SpeedQP) -> tuple[int, int]:
+        self.x.fill(0.0)
+        self.lam_g.fill(0.0)
+        return HpipmStatus.SUCCESS, 1
+
+    monkeypatch.setattr(SpeedQP, "solve", cruise)
+    problem = make_problem(**_BEND)
+    needed = _stop_excess(problem)
+    result = SpeedSolver(max_iterations=2).solve(problem)
+    assert_valid(problem, result)
+    assert np.all(result.jerk == 0.0) and result.speed_violation > needed + 5.0
+    assert result.info.extras["stop"] == "converged" and result.info.extras["restarts"] == 1
+    assert result.info.status is SolverStatus.SOLVED_INACCURATE and result.info.usable
+    assert result.info.extras["violation_remains"] is True
+    assert f"a full stop needs {needed:.3g}" in result.info.message
