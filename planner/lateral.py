@@ -379,7 +379,9 @@ def _eased(
     The bounds are linearised at the candidate's heading, which a path cutting a bend leaves: where
     the footprint of the eased path leaves the lane at a knot (by :func:`planner.validation.
     lane_overshoot`), that knot's bound is moved inside the path's own offset by the overshoot and the
-    QP solves once more. Without that, a bend whose bounds the eased path misses by millimetres left
+    QP's ``qp_slack`` (the footprint is then that much inside at the knot, which the trajectory sampled
+    between the knots needs: it reaches a millimetre or two further out on the edge) and the QP solves
+    once more. Without that, a bend whose bounds the eased path misses by millimetres left
     only the path that follows the reference's own change of curvature: in a tight bend one the
     steering rate lets the car drive at a crawl, the speed profile braking hard for it."""
     bounds = corridor.bounds
@@ -408,6 +410,7 @@ def _eased(
             return qp
         if repair:
             return None
+        right, left = right + config.lateral.qp_slack, left + config.lateral.qp_slack
         lower = np.where(
             right_out, np.minimum(np.maximum(bounds.lower, qp.d + right), bounds.upper), bounds.lower
         )
