@@ -32,7 +32,7 @@ from planner.lane import lane_bounds
 from planner.problem import Lane, PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Path, frenet_path
-from planner.validation import leaves_lane, outside_lane
+from planner.validation import lane_overshoot, leaves_lane, outside_lane
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
 from solvers.result import SolveInfo
 
@@ -218,6 +218,7 @@ class _Corridor:
     d_ref: FloatArray
     road_end: bool
     surface: Lane
+    boxes: FrenetBoxes
 
     @property
     def far(self) -> float:
@@ -311,7 +312,7 @@ def _corridor(
     # a lane that runs out (narrower than the vehicle) at the reference's end is its end, not a block
     road_end = bounds.blocked is not None and at[bounds.blocked] >= reach
     bounds, d_ref = _qp_bounds(bounds, d_ref, start, reach, vehicle.length)
-    return _Corridor(bounds, d_ref, bool(road_end), corridor)
+    return _Corridor(bounds, d_ref, bool(road_end), corridor, boxes)
 
 
 def _attempt(
@@ -332,12 +333,9 @@ def _attempt(
     rate = curvature_rate_allowance(bounds.s, start, problem, config, braking_share)
     if rate is not None:
         # a car whose steering rate is bounded eases into the reference's bends where that keeps its
-        # footprint in the lane (the bounds are linearised at the candidate's heading, which a path
-        # cutting a bend leaves); else it follows the reference as the point model does
-        eased = lateral_qp(
-            solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate, smooth=True
-        )
-        if eased.info.converged and _in_lane(ref, problem, bounds.s, eased, corridor.surface):
+        # footprint in the lane; else it follows the reference as the point model does
+        eased = _eased(solver, ref, problem, start, corridor, allowance, rate, time_left, config)
+        if eased is not None:
             return _Attempt(corridor, eased, lambda: True)
     qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate)
     if qp.info.converged and qp.first is None:  # OSQP solved it: nothing to choose from
@@ -361,6 +359,79 @@ def _attempt(
         qp = options[ranked]
     found = any(inside)
     return _Attempt(corridor, qp, lambda: found)
+
+
+def _eased(
+    solver: LateralQPSolver,
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    corridor: _Corridor,
+    allowance: FloatArray,
+    rate: FloatArray,
+    time_left: Callable[[], float | None],
+    config: PlannerConfig,
+) -> LateralQPResult | None:
+    """A car's lateral QP in ``corridor`` that eases into the reference's bends (:func:`lateral_qp`'s
+    ``smooth``, within the curvature ``allowance`` [1/m] and curvature-rate ``rate`` [1/m²] per knot),
+    when it converges and its path keeps the footprint in the lane; else None.
+
+    The bounds are linearised at the candidate's heading, which a path cutting a bend leaves: where
+    the footprint of the eased path leaves the lane at a knot (by :func:`planner.validation.
+    lane_overshoot`), that knot's bound is moved inside the path's own offset by the overshoot and the
+    QP's ``qp_slack`` (the footprint is then that much inside at the knot, which the trajectory sampled
+    between the knots needs: it reaches a millimetre or two further out on the edge) and the QP solves
+    once more. Without that, a bend whose bounds the eased path misses by millimetres left
+    only the path that follows the reference's own change of curvature: in a tight bend one the
+    steering rate lets the car drive at a crawl, the speed profile braking hard for it."""
+    bounds = corridor.bounds
+    for repair in (False, True):
+        qp = lateral_qp(
+            solver,
+            bounds,
+            corridor.d_ref,
+            start,
+            ref,
+            allowance,
+            config.lateral,
+            time_left(),
+            rate,
+            smooth=True,
+        )
+        if not qp.info.converged:
+            return None
+        path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
+        x, y = body_centre(path.x, path.y, path.heading, problem.vehicle)
+        right, left = lane_overshoot(ref, problem, x, y, path.heading, corridor.surface)
+        right_out, left_out = right > 0.0, left > 0.0
+        if not (right_out.any() or left_out.any()):
+            if repair and _meets_obstacle(ref, corridor, qp, problem, config):
+                return None
+            return qp
+        if repair:
+            return None
+        right, left = right + config.lateral.qp_slack, left + config.lateral.qp_slack
+        lower = np.where(
+            right_out, np.minimum(np.maximum(bounds.lower, qp.d + right), bounds.upper), bounds.lower
+        )
+        upper = np.where(left_out, np.maximum(np.minimum(bounds.upper, qp.d - left), lower), bounds.upper)
+        bounds = replace(bounds, lower=lower, upper=upper)
+    return None
+
+
+def _meets_obstacle(
+    ref: ReferenceLine,
+    corridor: _Corridor,
+    qp: LateralQPResult,
+    problem: PlanningProblem,
+    config: PlannerConfig,
+) -> bool:
+    """Whether the footprint along the QP's path, turned by the path's own heading error, overlaps an
+    obstacle's box of ``corridor`` at a knot (the bounds keep clear of them at the candidate's heading)."""
+    s = corridor.bounds.s
+    one = np.clip(1.0 - ref.kappa_at(s) * qp.d, config.lateral.min_stretch, None)
+    extent = footprint_extent(np.arctan(qp.dd / one), problem.vehicle, 0.0)
+    return bool(np.any(box_hits(corridor.boxes, s, qp.d, extent)))
 
 
 def _in_lane(

@@ -257,6 +257,30 @@ def leaves_lane(
     return np.asarray(np.any(outside - allowance > _GEOMETRY_TOL, axis=1))
 
 
+def lane_overshoot(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    x: FloatArray,
+    y: FloatArray,
+    heading: FloatArray,
+    surface: Lane | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """Per pose (the footprint's centre ``(x, y)`` [m], yaw ``heading`` [rad]), how far [m] the footprint
+    reaches beyond the lane's right edge and beyond its left edge (by TransF-κ), as :func:`leaves_lane`
+    judges it: less what the first pose already reaches out, within one vehicle length of it, and 0 where
+    within the checks' tolerance; a pose leaves the lane exactly where one of the two is positive."""
+    vehicle = problem.vehicle
+    corners = box_corners(x, y, heading, vehicle.length, vehicle.width).reshape(-1, 2)
+    fr = to_frenet(ref, corners)
+    left_w, right_w = (problem.lane if surface is None else surface).widths(ref, fr.s)
+    right = np.max((-right_w - fr.d).reshape(-1, 4), axis=1)
+    left = np.max((fr.d - left_w).reshape(-1, 4), axis=1)
+    near_start = np.hypot(x - x[0], y - y[0]) < vehicle.length
+    allowance = np.where(near_start, max(float(right[0]), float(left[0]), 0.0), 0.0)
+    right, left = right - allowance, left - allowance
+    return np.where(right > _GEOMETRY_TOL, right, 0.0), np.where(left > _GEOMETRY_TOL, left, 0.0)
+
+
 def trajectory_violations(
     ref: ReferenceLine,
     problem: PlanningProblem,

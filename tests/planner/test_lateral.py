@@ -337,3 +337,29 @@ def test_us101_keeping_the_offset_stops_before_the_parked_car() -> None:
     # (steering around the car or stopping before it on the held offset: either is a safe answer)
     assert result.status == "stopped", result.message
     assert not result.violations
+
+
+def test_lohmar_the_car_eases_into_the_tight_turn_instead_of_crawling_through_it() -> None:
+    """DEU_Lohmar-26_1, CommonRoad's car, the closed loop's state at 1.6 s (4.4 m/s, the recorded car 362
+    coming up from behind): the eased path (its jerk term costing the path's own curvature rate) missed
+    the lane by millimetres in the right turn 15 m ahead (its bounds linearised at the candidate's
+    heading), so the path followed the reference's own change of curvature there, which the steering
+    rate (0.4 rad/s) lets the car drive at about 1.1 m/s: the profile braked to that crawl, 362 hit it,
+    and the cycle (as the next 45) was a fallback. The bounds moved inside where the eased path left the
+    lane, its second solve keeps the footprint in the lane and lets the car through the turn at
+    about twice that."""
+    ego = Ego(
+        x=-455.9462057745639,
+        y=-438.59342793682026,
+        heading=1.4745587171400905,
+        speed=4.416733269450525,
+        acceleration=2.922510769401568,
+        curvature=-0.000982011149314392,
+    )
+    problem = replace(_recorded("DEU_Lohmar-26_1_T-1", 1.6, ego), vehicle=BMW)
+    result = plan(problem)
+    assert result.status == "ok", result.message
+    assert not result.violations
+    assert not car_violations(problem.vehicle, result.trajectory)
+    through = result.trajectory.v[result.trajectory.t > 1.0]
+    assert through.min() > 1.8  # the reference's own turn-in: 1.1 m/s

@@ -23,7 +23,15 @@ from planner.reference import ReferenceLine, build_reference
 from planner.roads import arc, straight
 from planner.st_bounds import static_shapes
 from planner.trajectory import Trajectory, body_trajectory, frenet_path, sample
-from planner.validation import HITS, Violation, ViolationKind, consistency_violations, trajectory_violations
+from planner.validation import (
+    HITS,
+    Violation,
+    ViolationKind,
+    consistency_violations,
+    lane_overshoot,
+    leaves_lane,
+    trajectory_violations,
+)
 
 DT, SPEED = 0.1, 5.0
 STRAIGHT = build_reference(straight(200.0, step=1.0))
@@ -277,3 +285,29 @@ def test_a_moving_obstacle_that_stays_put_is_checked_as_static() -> None:
 def test_the_hit_kinds_are_the_collisions() -> None:
     assert {ViolationKind.HITS_OBSTACLE, ViolationKind.HITS_MOVING_OBSTACLE} == HITS
     assert all(Violation(kind).obstacle_id is None for kind in ViolationKind)
+
+
+@pytest.mark.parametrize("ref", [STRAIGHT, BEND], ids=["straight", "bend"])
+def test_the_lane_overshoot_is_positive_exactly_where_the_footprint_leaves_the_lane_on_its_side(
+    ref: ReferenceLine,
+) -> None:
+    """Footprints (W = 2 m, in a lane 3.5 m either side) at offsets from −4 m to 4 m, turned by up to
+    0.3 rad: the overshoot on a side is positive exactly where :func:`leaves_lane` says it leaves the lane,
+    on the side it is off to, by how far its outermost corner reaches beyond the edge."""
+    s = np.linspace(20.0, 40.0, 41)
+    d = np.linspace(-4.0, 4.0, 41)
+    turn = 0.3 * np.sin(np.arange(41.0))
+    xy = to_cartesian(ref, s, d)
+    heading = ref.heading_at(s) + turn
+    ego = Ego(x=float(xy[0, 0]), y=float(xy[0, 1]), heading=float(heading[0]), speed=0.0)
+    problem = PlanningProblem(ref.points, Lane(3.5, 3.5), ego, (), Vehicle(length=4.0, width=2.0))
+    right, left = lane_overshoot(ref, problem, xy[:, 0], xy[:, 1], heading)
+    out = leaves_lane(ref, problem, xy[:, 0], xy[:, 1], heading)
+    np.testing.assert_array_equal((right > 0.0) | (left > 0.0), out)
+    assert out.any() and not out.all()
+    assert not np.any((right > 0.0) & (left > 0.0))
+    # off to the right where right, to the left where left (beyond the start's allowance: it starts out)
+    assert np.all(d[right > 0.0] < 0.0) and np.all(d[left > 0.0] > 0.0)
+    # far out on the left (d = 4 m, straight): the outer corners reach d + W/2 = 5 m, 1.5 m beyond the edge
+    if ref is STRAIGHT:
+        assert left[-1] == pytest.approx(4.0 + 1.0 * np.cos(turn[-1]) + 2.0 * abs(np.sin(turn[-1])) - 3.5, abs=1e-6)
