@@ -65,6 +65,7 @@ import shapely
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import gaussian_filter1d, grey_closing
 
+from planner.collision import STATIC_MOTION
 from planner.problem import CAR_FIELDS
 from planner.reference import FloatArray
 from planner_tools.extras import COMMONROAD, MissingExtraError
@@ -321,6 +322,51 @@ def constant_velocity_rows(
     return np.column_stack(
         (t, p[0] + dist * math.cos(heading), p[1] + dist * math.sin(heading), np.full_like(t, heading))
     )
+
+
+def continued_predictions(
+    obstacles: Sequence[dict[str, Any]], seconds: float
+) -> tuple[list[dict[str, Any]], dict[str, float]]:
+    """The request's obstacles with each recorded vehicle driving on past the end of its recording, and
+    when each recording ends.
+
+    CommonRoad's obstacles exist only over their recorded time span: one whose trajectory ends before
+    the scenario does has left the recorded area (a highway's measured stretch, a map's edge), it has
+    not stopped. A request's prediction is held at its last state (:func:`planner.collision.
+    prediction_at`), so as it stands such a vehicle would stop dead where the recording ends — a
+    phantom wall across the road that the planner brakes for, steers round or stops before. Here a
+    dynamic obstacle whose last two states move apart by more than :data:`planner.collision.
+    STATIC_MOTION` over ``seconds`` gets one more state ``seconds`` [s] later, straight on at its last
+    velocity and heading (the prediction is linear between states: constant velocity), as the shared
+    requests already do for set-based predictions; one that stands keeps its last state.
+
+    Returns:
+        the obstacles (the others unchanged, the input not modified) and, for every dynamic obstacle
+        of more than one state, the time [s] of its last recorded state: after it the vehicle is no
+        longer in the scene (:func:`planner_tools.sim.simulate`'s ``leaves``).
+    """
+    out: list[dict[str, Any]] = []
+    ends: dict[str, float] = {}
+    for ob in obstacles:
+        pred = ob.get("prediction")
+        if not pred or len(pred) < 2:
+            out.append(ob)
+            continue
+        a, b = pred[-2], pred[-1]
+        ends[str(ob["id"])] = float(b["t"])
+        step = float(b["t"]) - float(a["t"])
+        vx, vy = (float(b["x"]) - float(a["x"])) / step, (float(b["y"]) - float(a["y"])) / step
+        if math.hypot(vx, vy) * seconds <= STATIC_MOTION:
+            out.append(ob)
+            continue
+        on = {
+            "t": _r(float(b["t"]) + seconds, 4),
+            "x": _r(float(b["x"]) + vx * seconds),
+            "y": _r(float(b["y"]) + vy * seconds),
+            "heading": b["heading"],
+        }
+        out.append({**ob, "prediction": [*pred, on]})
+    return out, ends
 
 
 def target_speed(ego_speed: float, goal_speed: tuple[float, float] | None = None) -> float:
