@@ -496,13 +496,17 @@ def shift_obstacle(obstacle: Obstacle, t0: float) -> Obstacle:
     return replace(obstacle, prediction=shifted)
 
 
+#: an obstacle leaving at ``t`` [s] is still there at a sim time this close to it (``k · period`` rounds)
+_LEAVE_TOLERANCE = 1e-9
+
+
 def in_scene(problem: PlanningProblem, leaves: Mapping[str, float], t: float) -> PlanningProblem:
     """``problem`` without the obstacles that have left the scene by sim time ``t`` [s]: those whose id
     ``leaves`` maps to a time before ``t`` (a recording that ends there, :func:`planner_tools.commonroad.
     continued_predictions`); ``problem`` itself when none has."""
     if not leaves:
         return problem
-    kept = tuple(ob for ob in problem.obstacles if not leaves.get(ob.id, math.inf) < t)
+    kept = tuple(ob for ob in problem.obstacles if not leaves.get(ob.id, math.inf) < t - _LEAVE_TOLERANCE)
     return problem if len(kept) == len(problem.obstacles) else replace(problem, obstacles=kept)
 
 
