@@ -1119,7 +1119,9 @@ def driven_states(motion: Any, dt: float, initial_time_step: int = 0) -> list[An
     ]
 
 
-def write_solution(out: str | Path, conv: Conversion, motion: Any, vehicle_type: int = VEHICLE_TYPE) -> Path:
+def write_solution(
+    out: str | Path, conv: Conversion, motion: Any, vehicle_type: int = VEHICLE_TYPE
+) -> Path:
     """Write the driven ``motion`` of the scenario ``conv`` (converted from XML: its ``info`` holds the
     scenario id, time step and planning problem) as a CommonRoad solution file ``out`` (commonroad-io's
     :class:`~commonroad.common.solution.CommonRoadSolutionWriter`): the kinematic single-track model of
