@@ -121,6 +121,53 @@ def curvature_rate_allowance(
         return np.asarray(np.where(speed > 0.0, rate / np.maximum(speed, 1e-300), np.inf))
 
 
+def cruise_speed(problem: PlanningProblem) -> float:
+    """The speed [m/s] the plan would cruise at unhindered: the highest of the ego's speed and the speed
+    cap (:func:`planner.speed.speed_cap`: ``options.speed_limit``, else the target, else the vehicle's
+    max speed), within the vehicle's max speed."""
+    options, vehicle = problem.options, problem.vehicle
+    cap = options.speed_limit if options.speed_limit is not None else options.target_speed
+    if cap is None:
+        cap = vehicle.max_speed
+    if options.target_speed is not None:
+        cap = max(cap, options.target_speed)
+    return float(min(max(cap, problem.ego.speed), vehicle.max_speed))
+
+
+def straight_allowance(
+    s: FloatArray,
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    allowance: FloatArray,
+    config: PlannerConfig = DEFAULT_CONFIG,
+) -> FloatArray:
+    """A tighter curvature allowance [1/m] at knots ``s`` [m] than ``allowance`` (:func:`curvature_allowance`)
+    for a path that need not slow below :func:`cruise_speed`: the curvature at ``limit_margin ·
+    a_lat,max`` for that speed, but never below the reference's own curvature averaged over
+    ``straight_window`` [m] around each knot (a bend of the road keeps the curvature it needs; a jog of
+    a fitted reference — curvatures of either sign close together — averages out and is asked to be
+    driven straight), nor above ``allowance``."""
+    v = problem.vehicle
+    speed = cruise_speed(problem)
+    cruise = lateral_curvature(config.limit_margin * v.max_lateral_acceleration / max(speed * speed, 1.0), v)
+    half = 0.5 * config.lateral.straight_window
+    grid = np.linspace(s[0] - half, s[-1] + half, max(3, int(np.ceil((s[-1] - s[0] + 2 * half) / 0.5)) + 1))
+    kappa = ref.kappa_at(np.clip(grid, 0.0, ref.length))
+    step = float(grid[1] - grid[0])
+    width = max(1, round(2 * half / step))
+    mean = np.convolve(kappa, np.ones(width) / width, mode="same")
+    bend = np.abs(np.interp(s, grid, mean))
+    return np.asarray(np.minimum(allowance, np.maximum(cruise, bend)))
+
+
+def path_curvature(ref: ReferenceLine, s: FloatArray, qp: LateralQPResult) -> FloatArray:
+    """The curvature [1/m] of the QP's path at its knots ``s`` [m], for small ``d′``:
+    ``(d″/(1 − κd) + κ)/(1 − κd)`` (see :func:`lateral_qp`)."""
+    kappa = ref.kappa_at(s)
+    one = np.maximum(1.0 - kappa * qp.d, 1e-6)
+    return np.asarray((qp.ddd / one + kappa) / one)
+
+
 def reference_jerk(s: FloatArray, kappa: FloatArray, one: FloatArray) -> FloatArray:
     """The jerk ``d‴`` [1/m²] per interval of knots ``s`` [m] that evens out the reference's own change
     of curvature (``κ`` [1/m], ``1 − κd`` at the knots): ``−(1 − κd)² Δ(κ/(1 − κd)) / Δs``, the smaller
@@ -315,6 +362,39 @@ def _corridor(
 
 
 def _attempt(
+    solver: LateralQPSolver,
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    corridor: _Corridor,
+    time_left: Callable[[], float | None],
+    config: PlannerConfig,
+    braking_share: float,
+) -> _Attempt:
+    """:func:`_attempt_at`; where its path bends more than :func:`straight_allowance` lets the vehicle
+    cruise (a jog of the reference the lane has room to drive straight through), the QP once more with
+    that allowance, whose path is taken if it converged and keeps the footprint in the lane: the speed
+    profile need not slow for a bend the path can leave out."""
+    first = _attempt_at(solver, ref, problem, start, corridor, time_left, config, braking_share)
+    bounds = corridor.bounds
+    if not first.qp.info.converged:
+        return first
+    allowance = curvature_allowance(bounds.s, start, problem, config, braking_share)
+    straight = straight_allowance(bounds.s, ref, problem, allowance, config)
+    bent = np.abs(path_curvature(ref, bounds.s, first.qp)) > straight + config.lateral.straight_slack
+    # only beyond the first knots: the ego's own curvature at the start is a measurement
+    if not np.any(bent[bounds.s > start.s + problem.vehicle.length]):
+        return first
+    rate = curvature_rate_allowance(bounds.s, start, problem, config, braking_share)
+    qp = lateral_qp(
+        solver, bounds, corridor.d_ref, start, ref, straight, config.lateral, time_left(), rate, smooth=True
+    )
+    if qp.info.converged and _in_lane(ref, problem, bounds.s, qp, corridor.surface):
+        return _Attempt(corridor, qp, lambda: True)
+    return first
+
+
+def _attempt_at(
     solver: LateralQPSolver,
     ref: ReferenceLine,
     problem: PlanningProblem,
