@@ -68,8 +68,11 @@ class LateralConfig:
     #: (:func:`planner.lateral.straight_allowance`)
     straight_window: float = 20.0
     #: a path curvature this much above the straight allowance [1/m] makes the lateral stage try the
-    #: straighter path
+    #: straighter path; a reference whose curvature stays within it does not jog
     straight_slack: float = 1e-3
+    #: the reference jogs where, over ``straight_window``, its curvature's mean is below this share of its
+    #: mean magnitude (curvatures of either sign cancelling out) [-]
+    jog_share: float = 0.5
 
 
 @dataclass(frozen=True)

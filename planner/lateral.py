@@ -22,6 +22,7 @@ from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import maximum_filter1d
 
 from planner.bounds import LateralBounds, lateral_bounds, pass_left
 from planner.collision import FrenetBoxes, box_hits, footprint_extent
@@ -142,22 +143,29 @@ def straight_allowance(
     config: PlannerConfig = DEFAULT_CONFIG,
 ) -> FloatArray:
     """A tighter curvature allowance [1/m] at knots ``s`` [m] than ``allowance`` (:func:`curvature_allowance`)
-    for a path that need not slow below :func:`cruise_speed`: the curvature at ``limit_margin ·
-    a_lat,max`` for that speed, but never below the reference's own curvature averaged over
-    ``straight_window`` [m] around each knot (a bend of the road keeps the curvature it needs; a jog of
-    a fitted reference — curvatures of either sign close together — averages out and is asked to be
-    driven straight), nor above ``allowance``."""
+    where the reference only jogs: in a window of ``straight_window`` [m] holding the knot, the
+    reference's curvatures of either sign cancel out (their mean is less than ``jog_share`` of their mean
+    magnitude — a kink of a fitted map, an S-shift), the curvature at ``limit_margin · a_lat,max`` for
+    :func:`cruise_speed`, never below the magnitude of the mean curvature around the knot; a bend of the
+    road (one sign: its entry, its arc, its exit) keeps ``allowance``. Never above ``allowance``."""
     v = problem.vehicle
     speed = cruise_speed(problem)
     cruise = lateral_curvature(config.limit_margin * v.max_lateral_acceleration / max(speed * speed, 1.0), v)
     half = 0.5 * config.lateral.straight_window
     grid = np.linspace(s[0] - half, s[-1] + half, max(3, int(np.ceil((s[-1] - s[0] + 2 * half) / 0.5)) + 1))
     kappa = ref.kappa_at(np.clip(grid, 0.0, ref.length))
-    step = float(grid[1] - grid[0])
-    width = max(1, round(2 * half / step))
-    mean = np.convolve(kappa, np.ones(width) / width, mode="same")
-    bend = np.abs(np.interp(s, grid, mean))
-    return np.asarray(np.minimum(allowance, np.maximum(cruise, bend)))
+    width = max(1, round(2 * half / float(grid[1] - grid[0])))
+    box = np.ones(width) / width
+    mean = np.convolve(kappa, box, mode="same")
+    size = np.convolve(np.abs(kappa), box, mode="same")
+    # a window that jogs makes every point in it part of the jog (its ends too, where a window centred
+    # on them still sees one sign)
+    # (curvatures within straight_slack are a straight's numerical noise, not a jog)
+    jogs = (np.abs(mean) < config.lateral.jog_share * size) & (size > config.lateral.straight_slack)
+    jog = maximum_filter1d(jogs.astype(np.uint8), width) > 0
+    near = np.interp(s, grid, jog.astype(float)) > 0.0
+    straight = np.where(near, np.maximum(cruise, np.abs(np.interp(s, grid, mean))), allowance)
+    return np.asarray(np.minimum(allowance, straight))
 
 
 def path_curvature(ref: ReferenceLine, s: FloatArray, qp: LateralQPResult) -> FloatArray:
