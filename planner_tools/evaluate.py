@@ -19,6 +19,9 @@ problem and a goal:
   collision checker and feasibility check, and the road of the lanelets (see
   :mod:`planner_tools.crjudge`). A scenario without a goal state is driven for ``duration`` (to the
   reference's end at most) and judged on surviving it.
+* recorded vehicles that leave the recorded area before its recording ends drive on past their last
+  state for the planning horizon and leave the run then (:func:`planner_tools.commonroad.
+  continued_predictions`, ``Prepared.leaves``), instead of stopping dead where their recording ends;
 * without one (a JSON with no XML beside it), as before: the goal is an arc length on the reference
   (``s_min`` from ``index.json`` beside the request; for a goal given by time only
   :func:`survival_goal_s`), collisions are the simulator's, feasibility the drivability checker's when
