@@ -217,6 +217,7 @@ def lateral_qp(
     time_limit_s: float | None = None,
     rate_allowance: FloatArray | None = None,
     smooth: bool = False,
+    second_backend: bool = True,
 ) -> LateralQPResult:
     """Piecewise-jerk QP on ``d(s)``; ``d″`` bounds linearised at ``d_ref`` keep ``|κ_path| ≤ allowance``,
     the jerk ``|d‴| ≤ jerk`` and, when given, ``|dκ_path/dσ| ≤ rate_allowance`` (per knot).
@@ -230,7 +231,8 @@ def lateral_qp(
     reference's own changes of curvature (a fitted polyline's ripple) where they alone would turn the
     wheel too fast. With ``smooth`` (and a rate allowance) the jerk term costs the path's own curvature
     rate rather than the offset's (:func:`reference_jerk`): the path eases into the reference's bends
-    (a car's steering cannot jump), cutting them within the bounds.
+    (a car's steering cannot jump), cutting them within the bounds. ``second_backend``: what OSQP does
+    not converge on goes to the solver's second backend (:meth:`LateralQPSolver.solve`).
     """
     s = bounds.s
     lower = bounds.lower + config.qp_slack
@@ -260,7 +262,13 @@ def lateral_qp(
         ddd_upper=ddd_upper,
     )
     # cold: the answer must not depend on what this process planned before
-    return solver.solve(problem, max_iter=config.max_iter, time_limit_s=time_limit_s, warm_start=False)
+    return solver.solve(
+        problem,
+        max_iter=config.max_iter,
+        time_limit_s=time_limit_s,
+        warm_start=False,
+        second_backend=second_backend,
+    )
 
 
 @dataclass(frozen=True)
@@ -394,8 +402,19 @@ def _attempt(
     if not np.any(bent[bounds.s > start.s + problem.vehicle.length]):
         return first
     rate = curvature_rate_allowance(bounds.s, start, problem, config, braking_share)
+    # optional: what OSQP does not settle within its iterations is not worth the second backend's time
     qp = lateral_qp(
-        solver, bounds, corridor.d_ref, start, ref, straight, config.lateral, time_left(), rate, smooth=True
+        solver,
+        bounds,
+        corridor.d_ref,
+        start,
+        ref,
+        straight,
+        config.lateral,
+        time_left(),
+        rate,
+        smooth=True,
+        second_backend=False,
     )
     if qp.info.converged and _in_lane(ref, problem, bounds.s, qp, corridor.surface):
         return _Attempt(corridor, qp, lambda: True)
