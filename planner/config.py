@@ -63,6 +63,16 @@ class LateralConfig:
     retry_curvature_share: float = 0.99
     #: ``1 − κd`` of the curvature bound's linearisation is taken at least this [-]
     min_stretch: float = 0.05
+    #: the reference's curvature is averaged over this window [m] when asking whether a bend of the path
+    #: is the road's (kept) or a jog of the fitted reference the path may drive straight through
+    #: (:func:`planner.lateral.straight_allowance`)
+    straight_window: float = 20.0
+    #: a path curvature this much above the straight allowance [1/m] makes the lateral stage try the
+    #: straighter path; a reference whose curvature stays within it does not jog
+    straight_slack: float = 1e-3
+    #: the reference jogs where, over ``straight_window``, its curvature's mean is below this share of its
+    #: mean magnitude (curvatures of either sign cancelling out) [-]
+    jog_share: float = 0.5
 
 
 @dataclass(frozen=True)

@@ -87,6 +87,22 @@ def steering_rate_speed(
     return np.minimum(np.concatenate(([np.inf], per_step)), np.concatenate((per_step, [np.inf])))
 
 
+def curve_speed(
+    sigma: FloatArray, curvature: FloatArray, vehicle: Vehicle, lateral_share: float, steering_share: float
+) -> FloatArray:
+    """The speed [m/s] a path (arc length ``σ`` [m], curvature ``κ`` [1/m] at its knots) can be driven at
+    without a speed cap: the body's lateral acceleration within ``lateral_share · a_lat,max``
+    (``v² |κ| √(1 + (l_r κ)²)``, :func:`lateral_acceleration`; ``v² |κ|`` for the point model) and, for a
+    car with a steering-rate limit, the rate within ``steering_share`` of it (:func:`steering_rate_speed`)."""
+    bent = np.maximum(np.abs(curvature), 1e-9)
+    if vehicle.rear_offset:
+        bent = bent * np.sqrt(1.0 + (vehicle.rear_offset * curvature) ** 2)
+    with np.errstate(divide="ignore"):
+        speed = np.sqrt(lateral_share * vehicle.max_lateral_acceleration / bent)
+    steering = steering_rate_speed(sigma, curvature, vehicle, steering_share)
+    return np.asarray(speed if steering is None else np.minimum(speed, steering))
+
+
 def planned_ego(ego: Ego, vehicle: Vehicle) -> Ego:
     """The ego's planned point: the ego itself for the point model; a car's rear axle,
     ``l_r`` behind the centre along the yaw, with the ego's yaw, speed, acceleration and curvature

@@ -22,12 +22,13 @@ from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import maximum_filter1d
 
 from planner.bounds import LateralBounds, lateral_bounds, pass_left
 from planner.collision import FrenetBoxes, box_hits, footprint_extent
 from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
 from planner.ego import EgoFrenet
-from planner.kinematics import body_centre, lateral_curvature
+from planner.kinematics import body_centre, curve_speed, lateral_curvature
 from planner.lane import lane_bounds
 from planner.problem import Lane, PlanningProblem
 from planner.reference import FloatArray, ReferenceLine
@@ -121,6 +122,60 @@ def curvature_rate_allowance(
         return np.asarray(np.where(speed > 0.0, rate / np.maximum(speed, 1e-300), np.inf))
 
 
+def cruise_speed(problem: PlanningProblem) -> float:
+    """The speed [m/s] the plan would cruise at unhindered: the highest of the ego's speed and the speed
+    cap (:func:`planner.speed.speed_cap`: ``options.speed_limit``, else the target, else the vehicle's
+    max speed), within the vehicle's max speed."""
+    options, vehicle = problem.options, problem.vehicle
+    cap = options.speed_limit if options.speed_limit is not None else options.target_speed
+    if cap is None:
+        cap = vehicle.max_speed
+    if options.target_speed is not None:
+        cap = max(cap, options.target_speed)
+    return float(min(max(cap, problem.ego.speed), vehicle.max_speed))
+
+
+def straight_allowance(
+    s: FloatArray,
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    allowance: FloatArray,
+    config: PlannerConfig = DEFAULT_CONFIG,
+) -> FloatArray:
+    """A tighter curvature allowance [1/m] at knots ``s`` [m] than ``allowance`` (:func:`curvature_allowance`)
+    where the reference only jogs: in a window of ``straight_window`` [m] holding the knot, the
+    reference's curvatures of either sign cancel out (their mean is less than ``jog_share`` of their mean
+    magnitude — a kink of a fitted map, an S-shift), the curvature at ``limit_margin · a_lat,max`` for
+    :func:`cruise_speed`, never below the magnitude of the mean curvature around the knot; a bend of the
+    road (one sign: its entry, its arc, its exit) keeps ``allowance``. Never above ``allowance``."""
+    v = problem.vehicle
+    speed = cruise_speed(problem)
+    cruise = lateral_curvature(config.limit_margin * v.max_lateral_acceleration / max(speed * speed, 1.0), v)
+    half = 0.5 * config.lateral.straight_window
+    grid = np.linspace(s[0] - half, s[-1] + half, max(3, int(np.ceil((s[-1] - s[0] + 2 * half) / 0.5)) + 1))
+    kappa = ref.kappa_at(np.clip(grid, 0.0, ref.length))
+    width = max(1, round(2 * half / float(grid[1] - grid[0])))
+    box = np.ones(width) / width
+    mean = np.convolve(kappa, box, mode="same")
+    size = np.convolve(np.abs(kappa), box, mode="same")
+    # a window that jogs makes every point in it part of the jog (its ends too, where a window centred
+    # on them still sees one sign)
+    # (curvatures within straight_slack are a straight's numerical noise, not a jog)
+    jogs = (np.abs(mean) < config.lateral.jog_share * size) & (size > config.lateral.straight_slack)
+    jog = maximum_filter1d(jogs.astype(np.uint8), width) > 0
+    near = np.interp(s, grid, jog.astype(float)) > 0.0
+    straight = np.where(near, np.maximum(cruise, np.abs(np.interp(s, grid, mean))), allowance)
+    return np.asarray(np.minimum(allowance, straight))
+
+
+def path_curvature(ref: ReferenceLine, s: FloatArray, qp: LateralQPResult) -> FloatArray:
+    """The curvature [1/m] of the QP's path at its knots ``s`` [m], for small ``d′``:
+    ``(d″/(1 − κd) + κ)/(1 − κd)`` (see :func:`lateral_qp`)."""
+    kappa = ref.kappa_at(s)
+    one = np.maximum(1.0 - kappa * qp.d, 1e-6)
+    return np.asarray((qp.ddd / one + kappa) / one)
+
+
 def reference_jerk(s: FloatArray, kappa: FloatArray, one: FloatArray) -> FloatArray:
     """The jerk ``d‴`` [1/m²] per interval of knots ``s`` [m] that evens out the reference's own change
     of curvature (``κ`` [1/m], ``1 − κd`` at the knots): ``−(1 − κd)² Δ(κ/(1 − κd)) / Δs``, the smaller
@@ -162,6 +217,7 @@ def lateral_qp(
     time_limit_s: float | None = None,
     rate_allowance: FloatArray | None = None,
     smooth: bool = False,
+    second_backend: bool = True,
 ) -> LateralQPResult:
     """Piecewise-jerk QP on ``d(s)``; ``d″`` bounds linearised at ``d_ref`` keep ``|κ_path| ≤ allowance``,
     the jerk ``|d‴| ≤ jerk`` and, when given, ``|dκ_path/dσ| ≤ rate_allowance`` (per knot).
@@ -175,7 +231,8 @@ def lateral_qp(
     reference's own changes of curvature (a fitted polyline's ripple) where they alone would turn the
     wheel too fast. With ``smooth`` (and a rate allowance) the jerk term costs the path's own curvature
     rate rather than the offset's (:func:`reference_jerk`): the path eases into the reference's bends
-    (a car's steering cannot jump), cutting them within the bounds.
+    (a car's steering cannot jump), cutting them within the bounds. ``second_backend``: what OSQP does
+    not converge on goes to the solver's second backend (:meth:`LateralQPSolver.solve`).
     """
     s = bounds.s
     lower = bounds.lower + config.qp_slack
@@ -205,7 +262,13 @@ def lateral_qp(
         ddd_upper=ddd_upper,
     )
     # cold: the answer must not depend on what this process planned before
-    return solver.solve(problem, max_iter=config.max_iter, time_limit_s=time_limit_s, warm_start=False)
+    return solver.solve(
+        problem,
+        max_iter=config.max_iter,
+        time_limit_s=time_limit_s,
+        warm_start=False,
+        second_backend=second_backend,
+    )
 
 
 @dataclass(frozen=True)
@@ -316,6 +379,73 @@ def _corridor(
 
 
 def _attempt(
+    solver: LateralQPSolver,
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    corridor: _Corridor,
+    time_left: Callable[[], float | None],
+    config: PlannerConfig,
+    braking_share: float,
+) -> _Attempt:
+    """:func:`_attempt_at`; where its path bends more than :func:`straight_allowance` lets the vehicle
+    cruise (a jog of the reference the lane has room to drive straight through), the QP once more with
+    that allowance, whose path is taken if it converged and keeps the footprint in the lane: the speed
+    profile need not slow for a bend the path can leave out."""
+    first = _attempt_at(solver, ref, problem, start, corridor, time_left, config, braking_share)
+    bounds = corridor.bounds
+    if not first.qp.info.converged:
+        return first
+    allowance = curvature_allowance(bounds.s, start, problem, config, braking_share)
+    straight = straight_allowance(bounds.s, ref, problem, allowance, config)
+    bent = np.abs(path_curvature(ref, bounds.s, first.qp)) > straight + config.lateral.straight_slack
+    # only beyond the first knots: the ego's own curvature at the start is a measurement
+    if not np.any(bent[bounds.s > start.s + problem.vehicle.length]):
+        return first
+    rate = curvature_rate_allowance(bounds.s, start, problem, config, braking_share)
+    # optional: what OSQP does not settle within its iterations is not worth the second backend's time
+    qp = lateral_qp(
+        solver,
+        bounds,
+        corridor.d_ref,
+        start,
+        ref,
+        straight,
+        config.lateral,
+        time_left(),
+        rate,
+        smooth=True,
+        second_backend=False,
+    )
+    if qp.info.converged and _in_lane(ref, problem, bounds.s, qp, corridor.surface):
+        # taken only where it is faster to drive: a car's eased path through a real bend may be straighter
+        # at a jog and yet need a slower curvature change for its steering rate elsewhere
+        ahead = bounds.s > start.s + problem.vehicle.length
+        if _slowest(ref, problem, bounds.s, qp, ahead, config) > _slowest(
+            ref, problem, bounds.s, first.qp, ahead, config
+        ):
+            return _Attempt(corridor, qp, lambda: True)
+    return first
+
+
+def _slowest(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    s: FloatArray,
+    qp: LateralQPResult,
+    where: NDArray[np.bool_],
+    config: PlannerConfig,
+) -> float:
+    """The lowest speed [m/s] the QP's path at knots ``s`` [m] can be driven at where ``where`` holds (its
+    curvature's and steering rate's limits, :func:`planner.kinematics.curve_speed`)."""
+    path = frenet_path(ref, s, qp.d, qp.dd, qp.ddd)
+    speed = curve_speed(
+        path.sigma, path.curvature, problem.vehicle, config.limit_margin, config.speed.steering_rate_share
+    )
+    return float(np.min(speed[where], initial=np.inf))
+
+
+def _attempt_at(
     solver: LateralQPSolver,
     ref: ReferenceLine,
     problem: PlanningProblem,

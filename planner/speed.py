@@ -40,7 +40,7 @@ from scipy.ndimage import minimum_filter1d
 
 from planner.config import DEFAULT_CONFIG, PlannerConfig, SpeedConfig
 from planner.ego import EgoFrenet
-from planner.kinematics import steering_rate_speed
+from planner.kinematics import curve_speed
 from planner.lateral import LateralPlan
 from planner.problem import Options, PlanningProblem, Vehicle
 from planner.reference import FloatArray, ReferenceLine
@@ -175,17 +175,10 @@ def speed_limit(
     steering rate's: ``|dδ/dt| ≤ steering_rate_share · max_steering_rate``
     (:func:`planner.kinematics.steering_rate_speed`).
     """
-    vehicle = problem.vehicle
-    a_lat = vehicle.max_lateral_acceleration
-    curvature = np.maximum(np.abs(path.curvature), 1e-9)
-    if vehicle.rear_offset:
-        curvature = curvature * np.sqrt(1.0 + (vehicle.rear_offset * path.curvature) ** 2)
-    with np.errstate(divide="ignore"):
-        lateral = np.sqrt(config.limit_margin * a_lat / curvature)
-    limit = np.minimum(speed_cap(problem) if cap is None else cap, lateral)
-    steering = steering_rate_speed(path.sigma, path.curvature, vehicle, config.speed.steering_rate_share)
-    if steering is not None:
-        limit = np.minimum(limit, steering)
+    curve = curve_speed(
+        path.sigma, path.curvature, problem.vehicle, config.limit_margin, config.speed.steering_rate_share
+    )
+    limit = np.minimum(speed_cap(problem) if cap is None else cap, curve)
     # The lowest limit within limit_reach either side: the profile is checked only at its knots.
     step = float(path.sigma[-1] / max(path.sigma.shape[0] - 1, 1))
     size = 2 * max(1, int(np.ceil(config.speed.limit_reach / max(step, 1e-6)))) + 1

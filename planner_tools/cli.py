@@ -93,6 +93,7 @@ def _run(
     *,
     goal: Goal | None = None,
     duration: float | None = None,
+    leaves: dict[str, float] | None = None,
 ) -> SimResult:
     """A closed loop of ``problem`` (the car of ``--wheelbase``, … when given) with ``generator``, to
     ``goal`` (default: ``--goal-s``, else the simulator's) for ``duration`` (default ``--duration``)."""
@@ -117,6 +118,7 @@ def _run(
             goal=goal,
             progress=progress,
             model=model,
+            leaves=leaves,
         )
 
 
@@ -199,7 +201,7 @@ def _cmd_commonroad(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     result = _run(
         prepared.problem, args.generator or prepared.problem.options.generator, args, goal=goal,
-        duration=prepared.duration,
+        duration=prepared.duration, leaves=prepared.leaves,
     )  # fmt: skip
     try:
         outcome = judge_run(prepared, result, settings, time.perf_counter() - t0)

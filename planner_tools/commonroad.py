@@ -65,6 +65,7 @@ import shapely
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import gaussian_filter1d, grey_closing
 
+from planner.collision import STATIC_MOTION
 from planner.problem import CAR_FIELDS
 from planner.reference import FloatArray
 from planner_tools.extras import COMMONROAD, MissingExtraError
@@ -308,6 +309,10 @@ def prediction_rows(
     return np.asarray(rows)
 
 
+#: a recording that ends less than this before the latest one ends with it [s]
+_END_TOLERANCE = 1e-6
+
+
 def constant_velocity_rows(
     t_start: float, t_end: float, position: ArrayLike, heading: float, speed: float, step: float
 ) -> FloatArray:
@@ -321,6 +326,62 @@ def constant_velocity_rows(
     return np.column_stack(
         (t, p[0] + dist * math.cos(heading), p[1] + dist * math.sin(heading), np.full_like(t, heading))
     )
+
+
+def continued_predictions(
+    obstacles: Sequence[dict[str, Any]], seconds: float
+) -> tuple[list[dict[str, Any]], dict[str, float]]:
+    """The request's obstacles with each recorded vehicle that leaves the recorded area driving on past
+    the end of its recording, and when each such recording ends.
+
+    CommonRoad's obstacles exist only over their recorded time span: a vehicle whose trajectory ends
+    before the recording does has left the recorded area (a highway's measured stretch, a map's edge),
+    it has not stopped. A request's prediction is held at its last state (:func:`planner.collision.
+    prediction_at`), so as it stands such a vehicle would stop dead where its recording ends — a
+    phantom wall across the road that the planner brakes for, steers round and stops before.
+
+    The recording's end is the latest last state of a moving vehicle (one whose last two states move
+    apart by more than :data:`planner.collision.STATIC_MOTION` over ``seconds``); a moving vehicle whose
+    prediction ends before it gets one more state ``seconds`` [s] later, straight on at its last
+    velocity and heading (the prediction is linear between states: constant velocity), as the shared
+    requests already do for set-based predictions. Vehicles that stand, and those recorded to the end
+    (whose recording stops with the scenario, not because they left), are as they were.
+
+    Returns:
+        the obstacles (the input not modified) and, for each continued vehicle, the time [s] of its
+        last recorded state: after it the vehicle is no longer in the scene
+        (:func:`planner_tools.sim.simulate`'s ``leaves``).
+    """
+    moving: dict[int, tuple[float, float, float]] = {}  # index → (last t, vx, vy)
+    for i, ob in enumerate(obstacles):
+        pred = ob.get("prediction")
+        if not pred or len(pred) < 2:
+            continue
+        a, b = pred[-2], pred[-1]
+        step = float(b["t"]) - float(a["t"])
+        vx, vy = (float(b["x"]) - float(a["x"])) / step, (float(b["y"]) - float(a["y"])) / step
+        if math.hypot(vx, vy) * seconds > STATIC_MOTION:
+            moving[i] = (float(b["t"]), vx, vy)
+    if not moving:
+        return list(obstacles), {}
+    recorded = max(end for end, _, _ in moving.values())
+    out: list[dict[str, Any]] = []
+    leaves: dict[str, float] = {}
+    for i, ob in enumerate(obstacles):
+        if i not in moving or not moving[i][0] < recorded - _END_TOLERANCE:
+            out.append(ob)
+            continue
+        end, vx, vy = moving[i]
+        last = ob["prediction"][-1]
+        on = {
+            "t": _r(end + seconds, 4),
+            "x": _r(float(last["x"]) + vx * seconds),
+            "y": _r(float(last["y"]) + vy * seconds),
+            "heading": last["heading"],
+        }
+        out.append({**ob, "prediction": [*ob["prediction"], on]})
+        leaves[str(ob["id"])] = end
+    return out, leaves
 
 
 def target_speed(ego_speed: float, goal_speed: tuple[float, float] | None = None) -> float:

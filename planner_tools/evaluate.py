@@ -19,6 +19,9 @@ problem and a goal:
   collision checker and feasibility check, and the road of the lanelets (see
   :mod:`planner_tools.crjudge`). A scenario without a goal state is driven for ``duration`` (to the
   reference's end at most) and judged on surviving it.
+* recorded vehicles that leave the recorded area before its recording ends drive on past their last
+  state for the planning horizon and leave the run then (:func:`planner_tools.commonroad.
+  continued_predictions`, ``Prepared.leaves``), instead of stopping dead where their recording ends;
 * without one (a JSON with no XML beside it), as before: the goal is an arc length on the reference
   (``s_min`` from ``index.json`` beside the request; for a goal given by time only
   :func:`survival_goal_s`), collisions are the simulator's, feasibility the drivability checker's when
@@ -47,12 +50,13 @@ import numpy as np
 import shapely
 
 from planner.frenet import to_frenet
-from planner.problem import PlanningProblem
+from planner.problem import Options, PlanningProblem
 from planner.reference import build_reference
 from planner_tools.commonroad import (
     CommonRoadError,
     Conversion,
     car_vehicle,
+    continued_predictions,
     driven_states,
     feasible_transitions,
     load,
@@ -71,6 +75,8 @@ DURATION = 35.0
 SURVIVAL_SHARE = 0.6
 #: the step [s] at which a run without a CommonRoad scenario has its transitions judged
 FEASIBILITY_DT = 0.1
+#: a request's planning horizon without ``options.horizon_time`` [s]
+_DEFAULT_HORIZON = next(f.default for f in fields(Options) if f.name == "horizon_time")
 #: file suffixes of scenes
 SUFFIXES = (".xml", ".xml.gz", ".json")
 
@@ -149,7 +155,9 @@ def commonroad_file(path: Path) -> Path | None:
 class Prepared:
     """A scene ready to run: its name, conversion, request (what the planner gets at t = 0, JSON data)
     and problem, the simulator's goal, the duration [s], the CommonRoad scene that judges it (or None),
-    the speed limit's source, and the goal's arc length [m] on the reference when it has one."""
+    the speed limit's source, the goal's arc length [m] on the reference when it has one, the
+    CommonRoad collision check, and when each recorded vehicle leaves the scene [s]
+    (:func:`planner_tools.commonroad.continued_predictions`)."""
 
     name: str
     conversion: Conversion
@@ -161,6 +169,7 @@ class Prepared:
     speed_limit_source: str = ""
     goal_s: float | None = None
     collision: Callable[[Any], bool] | None = field(default=None, repr=False)
+    leaves: dict[str, float] = field(default_factory=dict, repr=False)
 
 
 def survival_goal_s(conv: Conversion, duration: float) -> float:
@@ -254,11 +263,14 @@ def prepare(
             window = judge.goal_window()
             if window is not None:
                 duration = min(duration, _cycles_to(window[1], settings.replan_period))
+    horizon = float((request.get("options") or {}).get("horizon_time", _DEFAULT_HORIZON))
+    obstacles, leaves = continued_predictions(request.get("obstacles", []), horizon)
+    request["obstacles"] = obstacles
     problem = problem_from_json(request)
     collision = None
     if judge is not None:
         collision = judge.collision_check(duration, problem.vehicle.length, problem.vehicle.width)
-    return Prepared(name, conv, request, problem, goal, duration, judge, source, goal_s, collision)
+    return Prepared(name, conv, request, problem, goal, duration, judge, source, goal_s, collision, leaves)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -516,6 +528,7 @@ def run_scene(
             goal=prepared.goal,
             progress=progress,
             collision=prepared.collision,
+            leaves=prepared.leaves,
         )
         outcome = judge_run(prepared, result, settings, 0.0)
         gif = _gif(result) if settings.gif else None

@@ -52,7 +52,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields, replace
 from typing import Any, Literal
 
@@ -496,6 +496,20 @@ def shift_obstacle(obstacle: Obstacle, t0: float) -> Obstacle:
     return replace(obstacle, prediction=shifted)
 
 
+#: an obstacle leaving at ``t`` [s] is still there at a sim time this close to it (``k · period`` rounds)
+_LEAVE_TOLERANCE = 1e-9
+
+
+def in_scene(problem: PlanningProblem, leaves: Mapping[str, float], t: float) -> PlanningProblem:
+    """``problem`` without the obstacles that have left the scene by sim time ``t`` [s]: those whose id
+    ``leaves`` maps to a time before ``t`` (a recording that ends there, :func:`planner_tools.commonroad.
+    continued_predictions`); ``problem`` itself when none has."""
+    if not leaves:
+        return problem
+    kept = tuple(ob for ob in problem.obstacles if not leaves.get(ob.id, math.inf) < t - _LEAVE_TOLERANCE)
+    return problem if len(kept) == len(problem.obstacles) else replace(problem, obstacles=kept)
+
+
 def problem_at(problem: PlanningProblem, state: VehicleState) -> PlanningProblem:
     """The problem the planner gets at ``state.t``: the vehicle as ego, predictions shifted, and the
     goal's time window (times from now) shifted by ``state.t``."""
@@ -735,6 +749,7 @@ def simulate(
     model: BicycleModel | None = None,
     gains: TrackerGains | None = None,
     collision: Callable[[VehicleState], bool] | None = None,
+    leaves: Mapping[str, float] | None = None,
 ) -> SimResult:
     """Drive ``problem`` in closed loop (see the module docstring).
 
@@ -751,6 +766,10 @@ def simulate(
             collision_check`), asked at every sub-step of a cycle; given, a collision it finds ends the
             run, and the simulator's own footprint check against the problem's obstacles is only counted
             (``collisions``, ``collided_with``, ``min_clearance``).
+        leaves: obstacle id → sim time [s] after which that obstacle is no longer in the scene (a
+            recorded vehicle whose recording ends: :func:`planner_tools.commonroad.
+            continued_predictions`); from the first cycle starting after it, neither the planner nor the
+            simulator's own contact check sees it (:func:`in_scene`). Default: every obstacle stays.
 
     A ``problem.options.time_budget_ms`` is kept: plans that overrun it become fallbacks, so the run
     then depends on the machine's speed.
@@ -771,6 +790,7 @@ def simulate(
     gains = TrackerGains() if gains is None else gains
     vehicle = problem.vehicle
     asked = replace(problem, options=replace(problem.options, return_candidates=True))
+    leaves = {} if leaves is None else dict(leaves)
     static = [(ob.id, obstacle_shape(ob)) for ob in problem.obstacles if not isinstance(ob, DynamicObstacle)]
     total = max(1, math.ceil(duration / replan_period - 1e-9))
     h = replan_period / model.substeps
@@ -797,7 +817,8 @@ def simulate(
         termination, time_to_goal = "goal", 0.0
 
     for k in range(total if termination == "timeout" else 0):
-        asked_now = problem_at(asked, state)
+        asked_now = problem_at(in_scene(asked, leaves, state.t), state)
+        present = in_scene(problem, leaves, state.t)
         t0 = time.perf_counter()
         result: PlanResult | None
         try:
@@ -836,7 +857,7 @@ def simulate(
                 candidates_xy=xy,
                 candidates_folded=folded,
                 chosen=None if result is None else result.diagnostics.chosen_candidate,
-                obstacles=obstacle_outlines(problem, samples[-1].t),
+                obstacles=obstacle_outlines(present, samples[-1].t),
                 max_lateral_error=worst,
                 decision=None if result is None else result.diagnostics.decision,
             )
@@ -846,7 +867,7 @@ def simulate(
         fr = to_frenet(ref, [[state.x, state.y]])
         s_now, d_now = float(fr.s[0]), float(fr.d[0])
 
-        hit, clearance, ids = _hits(problem, static, cycle)
+        hit, clearance, ids = _hits(present, static, cycle)
         if clearance.size:
             min_clearance = min(min_clearance, float(clearance.min()))
         if progress is not None:

@@ -218,6 +218,7 @@ class LateralQPSolver:
         time_limit_s: float | None = None,
         max_iter: int = 4000,
         warm_start: bool = True,
+        second_backend: bool = True,
     ) -> LateralQPResult:
         """Solve ``problem``; non-convergence is reported in ``result.info.status``, never raised.
 
@@ -231,6 +232,9 @@ class LateralQPSolver:
                 starts from the clipped reference with zero duals and OSQP's initial ``rho`` (a set-up
                 whose ``rho`` was adapted is made anew): its result does not depend on what the solver
                 solved before.
+            second_backend: hand what OSQP does not converge on to the second backend, when the solver
+                has one (False: OSQP's answer as it is — for an optional solve not worth the second
+                backend's time).
 
         Raises:
             ValueError: ``problem`` is not a :class:`LateralQPProblem`, or a limit is not positive.
@@ -326,7 +330,7 @@ class LateralQPSolver:
             return LateralQPResult(info=info, d=d, dd=dd, ddd=ddd, x=x)
 
         hand_over = status in _HAND_OVER or int(info.status_val) == _INACCURATE_INFEASIBLE
-        if not (self._second_backend and hand_over):
+        if not (self._second_backend and second_backend and hand_over):
             return result(x, status, message)
         second = solve_conic_qp(
             workspace.P,

@@ -36,6 +36,7 @@ from planner.lateral import (
     knots,
     lateral_qp,
     reference_jerk,
+    straight_allowance,
 )
 from planner.pipeline import plan
 from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
@@ -60,6 +61,15 @@ CAR = Vehicle(
     max_deceleration=8.0,
     max_lateral_acceleration=4.0,
     max_curvature=0.3,
+)
+#: the same vehicle as CommonRoad's car (vehicle type 2): planned at its rear axle, steering limited
+CAR_WITH_AXLE = replace(
+    CAR,
+    max_curvature=0.7017693147614497,
+    wheelbase=2.5789128,
+    rear_axle_offset=1.4227170936,
+    max_steering_angle=1.066,
+    max_steering_rate=0.4,
 )
 
 
@@ -363,3 +373,62 @@ def test_lohmar_the_car_eases_into_the_tight_turn_instead_of_crawling_through_it
     assert not car_violations(problem.vehicle, result.trajectory)
     through = result.trajectory.v[result.trajectory.t > 1.0]
     assert through.min() > 1.8  # the reference's own turn-in: 1.1 m/s
+
+
+def _jog(shift: float = 1.0, length: float = 12.0, at: float = 150.0) -> np.ndarray:
+    """A straight reference along +x with an S-jog of ``shift`` [m] to the left over ``length`` [m] at
+    ``at`` [m] (a fitted map's kink: curvature ``±π² shift / (2 length²)``, 0.034 1/m here)."""
+    x = np.arange(0.0, 320.0, 1.0)
+    u = np.clip((x - at) / length, 0.0, 1.0)
+    return np.column_stack((x, 0.5 * shift * (1.0 - np.cos(np.pi * u))))
+
+
+def test_the_straight_allowance_keeps_a_bend_and_leaves_out_a_jog() -> None:
+    """A bend of the road keeps the curvature it needs; a jog of the reference (curvatures of either sign
+    close together) averages out: the path is asked to drive it at the cruise speed's curvature."""
+    problem = PlanningProblem(
+        _jog(), Lane(4.0, 4.0), Ego(100.0, 0.0, 0.0, speed=20.0), (), CAR, Options(target_speed=20.0)
+    )
+    ref = build_reference(problem.reference_line)
+    s = np.linspace(100.0, 200.0, 201)
+    loose = np.full(s.shape, 0.2)
+    cruise = DEFAULT_CONFIG.limit_margin * CAR.max_lateral_acceleration / 20.0**2
+    straight = straight_allowance(s, ref, problem, loose)
+    assert np.max(np.abs(ref.kappa_at(s))) > 3.0 * cruise  # the jog itself is far too sharp
+    np.testing.assert_allclose(straight[(s > 140.0) & (s < 172.0)], cruise, rtol=0.3)
+    assert np.all(straight <= loose)
+    ego = Ego(0.0, 0.0, 0.0, speed=20.0)
+    bend = PlanningProblem(u_turn(radius=40.0), Lane(4.0, 4.0), ego, (), CAR, Options(target_speed=20.0))
+    ref_b = build_reference(bend.reference_line)
+    kept = straight_allowance(ref_b.s, ref_b, bend, np.full(ref_b.s.shape, 0.2))
+    np.testing.assert_array_equal(kept, 0.2)  # a bend (its entry and exit too) keeps the allowance
+
+
+@pytest.mark.parametrize("vehicle", [CAR, CAR_WITH_AXLE], ids=["point", "car"])
+def test_a_jog_of_the_reference_in_a_wide_lane_is_driven_straight_at_target_speed(vehicle: Vehicle) -> None:
+    """Following the jog would need 0.034 1/m, 7.5 m/s² at the 20 m/s target for a 4 m/s² vehicle, so the
+    speed profile would slow to ~10 m/s for it; the lane has room to drive it straight at the target."""
+    problem = PlanningProblem(
+        _jog(), Lane(4.0, 4.0), Ego(100.0, 0.0, 0.0, speed=20.0), (), vehicle, Options(target_speed=20.0)
+    )
+    result = plan(problem)
+    assert result.status == "ok" and not result.violations, result.message
+    traj = result.trajectory
+    through = (traj.s > 140.0) & (traj.s < 175.0)
+    assert through.any() and np.min(traj.v) > 19.5  # no slowing for the jog
+    lat = traj.v[through] ** 2 * np.abs(traj.curvature[through])
+    assert np.max(lat) <= vehicle.max_lateral_acceleration
+
+
+def test_a_jog_in_a_lane_without_room_is_followed_as_before() -> None:
+    """Where the lane leaves no room to drive the jog straight, the path follows it (the first QP's) and the
+    speed profile slows for it, within the limits."""
+    narrow = Lane(1.0, 1.0)
+    problem = PlanningProblem(
+        _jog(shift=2.0), narrow, Ego(100.0, 0.0, 0.0, speed=20.0), (), CAR, Options(target_speed=20.0)
+    )
+    result = plan(problem)
+    assert result.status == "ok" and not result.violations, result.message
+    traj = result.trajectory
+    assert np.min(traj.v) < 19.0  # slows for the jog it cannot leave out
+    assert np.max(traj.v**2 * np.abs(traj.curvature)) <= CAR.max_lateral_acceleration + 1e-6

@@ -131,6 +131,47 @@ def test_constant_velocity_rows() -> None:
     np.testing.assert_allclose(rows[:, 2], 5.0)
 
 
+def _moving(oid: str, end: float, speed: float = 10.0, step: float = 0.1) -> dict[str, object]:
+    """A recorded vehicle driving along +x at ``speed`` [m/s] from x = 0 until ``end`` [s]."""
+    t = np.arange(0.0, end + 1e-9, step)
+    rows = [{"t": round(float(ti), 4), "x": speed * float(ti), "y": 0.0, "heading": 0.0} for ti in t]
+    return {"id": oid, "length": 4.0, "width": 1.8, "prediction": rows}
+
+
+def test_a_vehicle_whose_recording_ends_early_drives_on_and_leaves_the_scene() -> None:
+    """One that left the recorded area (its recording ends before the latest moving one's) drives on at its
+    last velocity for the horizon and leaves the scene when its recording ends; a standing one, one
+    recorded to the end and a static outline are as they were, and the input is not modified."""
+    left = _moving("left", 2.0, speed=15.0)
+    last = _moving("last", 8.0)
+    parked = {**_moving("parked", 1.0, speed=0.0), "id": "parked"}
+    cone = {"id": "cone", "circle": {"center": [5.0, 5.0], "radius": 0.5}}
+    obstacles = [left, last, parked, cone]
+    out, leaves = cr.continued_predictions(obstacles, 8.0)
+    assert leaves == {"left": pytest.approx(2.0)}
+    assert out[1] is last and out[2] is parked and out[3] is cone
+    pred = out[0]["prediction"]
+    assert pred[:-1] == left["prediction"] and len(left["prediction"]) == 21  # the input as it was
+    assert pred[-1]["t"] == pytest.approx(10.0)
+    assert pred[-1]["x"] == pytest.approx(30.0 + 15.0 * 8.0) and pred[-1]["y"] == 0.0
+    # the request stays valid, and the planner sees it moving on, not stopped at x = 30 m
+    problem = problem_from_json({
+        "reference_line": [[0.0, 0.0], [200.0, 0.0]], "lane": {"left_width": 2.0, "right_width": 2.0},
+        "obstacles": out, "ego": {"x": -40.0, "y": 0.0, "heading": 0.0, "speed": 10.0}, "vehicle": {},
+        "options": {"target_speed": 10.0},
+    })  # fmt: skip
+    from planner.collision import prediction_at
+
+    x_at_4 = prediction_at(problem.obstacles[0], np.array([4.0]))[0, 0]
+    assert x_at_4 == pytest.approx(60.0)
+
+
+def test_no_moving_vehicle_no_change() -> None:
+    obstacles = [{**_moving("parked", 3.0, speed=0.0)}]
+    out, leaves = cr.continued_predictions(obstacles, 8.0)
+    assert out == obstacles and leaves == {}
+
+
 @pytest.mark.parametrize(
     ("ego", "goal", "expected"),
     [

@@ -91,6 +91,29 @@ def test_a_scene_judged_against_its_xml_carries_the_goal_and_the_speed_limit() -
     assert ev.prepare(DATA / "DEU_Test-1_1_T-1.json").duration == pytest.approx(4.0)
 
 
+def test_recorded_vehicles_that_leave_drive_on_and_leave_the_run() -> None:
+    """USA_US101-6_1_T-1: 17 recorded cars leave the measured stretch before its recording ends (at
+    8 s); held at their last states they were a wall of stopped cars across all five lanes ~160 m
+    ahead. Prepared, each drives on for the horizon and leaves the run when its recording ends; a scene
+    whose cars are all recorded to its end (BEL_Aarschot) is as it was."""
+    pytest.importorskip("commonroad")
+    raw = json.loads((DATA / "USA_US101-6_1_T-1.json").read_text())
+    prepared = ev.prepare(DATA / "USA_US101-6_1_T-1.json")
+    assert len(prepared.leaves) == 17 and prepared.leaves["322"] == pytest.approx(1.4)
+    horizon = prepared.problem.options.horizon_time
+    by_id = {ob.id: ob for ob in prepared.problem.obstacles}
+    assert by_id["322"].prediction[-1, 0] == pytest.approx(1.4 + horizon)
+    recorded = {ob["id"]: ob["prediction"] for ob in raw["obstacles"]}
+    assert by_id["423"].prediction.shape[0] == len(recorded["423"])  # recorded to the end: as it was
+    run = ev.run_scene(DATA / "USA_US101-6_1_T-1.json", ev.Settings(duration=2.0), keep=True)
+    assert run.result is not None
+    assert "322" in dict(run.result.steps[14].obstacles) and "322" not in dict(run.result.steps[15].obstacles)
+    aarschot = ev.prepare(DATA / "BEL_Aarschot-3_1_T-1.json")
+    assert aarschot.leaves == {}
+    original = json.loads((DATA / "BEL_Aarschot-3_1_T-1.json").read_text())["obstacles"]
+    assert aarschot.request["obstacles"] == original
+
+
 # --------------------------------------------------------------------------------------------------
 # On Ray
 # --------------------------------------------------------------------------------------------------

@@ -359,6 +359,28 @@ def test_an_outside_collision_check_decides_when_a_collision_ends_the_run() -> N
     assert never.metrics.termination == "timeout" and never.metrics.collisions > 0
 
 
+def test_an_obstacle_that_leaves_the_scene_is_gone_for_the_planner_and_the_contact_check() -> None:
+    """A recorded car whose recording ends (it left the recorded area) is held at its last state by the
+    prediction's contract: without ``leaves`` it is a car stopped in the lane that the vehicle stops
+    behind; with ``leaves`` it is gone from the cycle after its time on, for the planner and the
+    simulator's own contact check."""
+    ahead = DynamicObstacle("ahead", 4.5, 1.8, np.array([[0.0, 40.0, 0.0, 0.0], [1.0, 45.0, 0.0, 0.0]]))
+    problem = PlanningProblem(
+        straight(200.0, step=5.0), Lane(1.75, 1.75), Ego(10.0, 0.0, 0.0, speed=8.0), (ahead,), Vehicle(),
+        Options(target_speed=8.0),
+    )  # fmt: skip
+    held = simulate(problem, duration=6.0)
+    gone = simulate(problem, duration=6.0, leaves={"ahead": 1.0})
+    assert held.metrics.status_counts["stopped"] + held.metrics.status_counts["fallback"] > 0
+    assert held.metrics.final_s < 45.0 - 2.25  # stopped behind the held car
+    assert gone.metrics.final_s > 45.0 + 2.25 and gone.metrics.collisions == 0  # drove through where it was
+    seen = [[oid for oid, _ in step.obstacles] for step in gone.steps]
+    assert seen[10] == ["ahead"] and all(ids == [] for ids in seen[11:])  # from the cycle after t = 1 s
+    assert sim.in_scene(problem, {}, 5.0) is problem
+    assert sim.in_scene(problem, {"ahead": 1.0}, 1.0) is problem  # still there at its last state
+    assert sim.in_scene(problem, {"ahead": 1.0}, 1.1).obstacles == ()
+
+
 def test_each_cycles_request_carries_the_goal_with_its_times_from_now() -> None:
     goal = PlannerGoal(time=(3.0, 4.0), speed=(0.0, 2.0))
     problem = replace(PlanningProblem(straight(60.0), Lane(3.5, 3.5), Ego(0.0, 0.0, 0.0)), goal=goal)

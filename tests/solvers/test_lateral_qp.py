@@ -349,6 +349,19 @@ def test_what_osqp_does_not_finish_clarabel_solves() -> None:
     assert result.info.objective == pytest.approx(exact.info.objective, rel=1e-6)
 
 
+def test_a_solve_may_keep_osqps_answer_from_the_second_backend() -> None:
+    """``second_backend=False`` for one call: OSQP's unfinished answer as it is, no hand-over; the next call
+    hands over again."""
+    problem = _active_cases()["offset"][0]
+    solver = LateralQPSolver()
+    alone = solver.solve(problem, max_iter=50, warm_start=False, second_backend=False)
+    assert alone.info.status is SolverStatus.MAX_ITERATIONS and not alone.info.converged
+    assert (alone.info.extras["backend"], alone.info.extras["second_status"]) == ("osqp", "")
+    assert alone.first is None
+    again = solver.solve(problem, max_iter=50, warm_start=False)
+    assert again.info.converged and again.info.extras["backend"] == "clarabel"
+
+
 def test_the_second_backend_gives_the_same_answer_every_time() -> None:
     problem = _active_cases()["all"][0]
     first = LateralQPSolver().solve(problem, max_iter=10, warm_start=False)
