@@ -153,7 +153,7 @@ class Along:
         reach = 2.0 * (own + diagonal) + self.knot_spacing  # [m], per mover
         # one query out to the largest reach, then each mover's own
         dist, _ = self.tree.query(np.concatenate(states)[:, :2], distance_upper_bound=float(reach.max()))
-        close = dist.reshape(len(movers), -1) <= reach[:, None]
+        close = np.asarray(dist).reshape(len(movers), -1) <= reach[:, None]
         return np.flatnonzero(close.any(axis=1)), states, close
 
     def meets(self, boxes: tuple[FloatArray, FloatArray, FloatArray, FloatArray]) -> NDArray[np.bool_]:
