@@ -70,18 +70,46 @@ class ConicQPResult:
     x: FloatArray
 
 
+#: matrices :func:`qpsolvers_problem` built, by what they were built from: ``("P", id(P))`` → ``(P, full)``
+#: and ``("A", id(A), masks)`` → ``(A, G, A_eq)``, the source kept beside them (an identity is only
+#: reused once its object is gone). The lateral QP's and the elastic QP's matrices are shared per knot
+#: grid (``functools.lru_cache``), and a plan hands the same grid over several times; building them
+#: again was a third of the conversion's cost. Shared, never written to; the oldest dropped first.
+_BUILT: dict[tuple[Any, ...], tuple[Any, ...]] = {}
+#: entries of :data:`_BUILT` kept
+_BUILT_SIZE = 16
+
+
+def _built(key: tuple[Any, ...], source: sp.csc_matrix, build: Any) -> tuple[Any, ...]:
+    """``build()``'s matrices for ``key``, built once while ``source`` is alive."""
+    found = _BUILT.get(key)
+    if found is not None and found[0] is source:
+        return found[1:]
+    made = build()
+    while len(_BUILT) >= _BUILT_SIZE:
+        _BUILT.pop(next(iter(_BUILT)), None)
+    _BUILT[key] = (source, *made)
+    return tuple(made)
+
+
 def qpsolvers_problem(
     P: sp.csc_matrix, q: FloatArray, A: sp.csc_matrix, lower: FloatArray, upper: FloatArray
 ) -> qpsolvers.Problem:
-    """``l ≤ Ax ≤ u`` as equalities and one-sided inequalities (see the module docstring)."""
-    full = (P + sp.triu(P, 1).T).tocsc()
+    """``l ≤ Ax ≤ u`` as equalities and one-sided inequalities (see the module docstring); the matrices
+    of a ``P`` and of an ``A`` with the same equal and finite rows as before are those built then."""
+    (full,) = _built(("P", id(P)), P, lambda: ((P + sp.triu(P, 1).T).tocsc(),))
     equal = lower == upper
     ranged = ~equal
-    rows = A[ranged]
     has_upper, has_lower = np.isfinite(upper[ranged]), np.isfinite(lower[ranged])
-    G = sp.vstack([rows[has_upper], -rows[has_lower]]).tocsc()
+
+    def build() -> tuple[sp.csc_matrix, sp.csc_matrix]:
+        rows = A[ranged]
+        return sp.vstack([rows[has_upper], -rows[has_lower]]).tocsc(), A[equal].tocsc()
+
+    masks = np.packbits(np.concatenate([equal, has_upper, has_lower])).tobytes()
+    G, A_eq = _built(("A", id(A), A.shape, masks), A, build)
     h = np.concatenate([upper[ranged][has_upper], -lower[ranged][has_lower]])
-    return qpsolvers.Problem(full, q, G, h, A[equal].tocsc(), lower[equal])
+    return qpsolvers.Problem(full, q, G, h, A_eq, lower[equal])
 
 
 def solve_conic_qp(
