@@ -19,7 +19,7 @@ dense traffic mapping the others would be most of the stage's cost.
 from __future__ import annotations
 
 from collections.abc import Collection
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -100,9 +100,7 @@ def space_time_bounds(
     if not movers:
         return SpaceTimeBounds(None, None)
     speed, gap = config.speed, config.stop_gap
-    # "near the path" measured with the largest of all the movers, whichever of them a bound maps
-    largest = max(float(np.hypot(ob.length, ob.width)) for ob in movers)
-    along = replace(Along.of(ref, path, problem, config), largest=largest)
+    along = Along.of(ref, path, problem, config)
     # Each bound maps only its own (the same split both make themselves: :func:`_behind`): the leaders
     # ahead of the ego at the start, the followers behind it.
     behind = _behind(ref, movers, start_s)
@@ -130,8 +128,6 @@ class Along:
     tree: cKDTree
     extent: Extent
     knot_spacing: float
-    #: the largest obstacle's diagonal [m] that :meth:`near` reaches for (None: the largest it is given)
-    largest: float | None = None
 
     @classmethod
     def of(cls, ref: ReferenceLine, path: Path, problem: PlanningProblem, config: PlannerConfig) -> Along:
@@ -143,19 +139,21 @@ class Along:
         self, movers: list[DynamicObstacle], t: FloatArray
     ) -> tuple[NDArray[np.intp], list[FloatArray], NDArray[np.bool_]]:
         """Which of ``movers`` come near the path at some time of ``t`` [s], every mover's states then
-        (shape (T, 3) each) and when each is near (shape (len(movers), T)). "Near": within twice the
-        reach of the footprint (its half-diagonal) and of the largest obstacle, plus a knot spacing
-        (generous: a Frenet box may be larger than the shape it bounds); a box not near cannot meet the
-        footprint, so it need not be mapped (:func:`frenet_extents`' ``mapped``)."""
+        (shape (T, 3) each) and when each is near (shape (len(movers), T)). "Near": the obstacle's
+        centre within twice the reach of the footprint (its half-diagonal) and of the obstacle itself
+        (its diagonal, twice its half-diagonal), plus a knot spacing (generous: a Frenet box may be
+        larger than the shape it bounds); a box not near cannot meet the footprint, so it need not be
+        mapped (:func:`frenet_extents`' ``mapped``). Each obstacle's reach is its own: a bus among the
+        movers does not make every car's reach a bus's (in dense traffic most of the mapping would
+        then be of cars on other roads), and which obstacles a bound is given changes no verdict."""
         states = [prediction_at(ob, t) for ob in movers]
         ext = self.extent
         own = float(np.hypot(max(ext.front[0], ext.back[0]), max(ext.left[0], ext.right[0])))
-        largest = self.largest
-        if largest is None:
-            largest = max(float(np.hypot(ob.length, ob.width)) for ob in movers)
-        reach = 2.0 * (own + largest) + self.knot_spacing
-        dist, _ = self.tree.query(np.concatenate(states)[:, :2], distance_upper_bound=reach)  # one query
-        close = np.isfinite(dist).reshape(len(movers), -1)
+        diagonal = np.hypot([ob.length for ob in movers], [ob.width for ob in movers])
+        reach = 2.0 * (own + diagonal) + self.knot_spacing  # [m], per mover
+        # one query out to the largest reach, then each mover's own
+        dist, _ = self.tree.query(np.concatenate(states)[:, :2], distance_upper_bound=float(reach.max()))
+        close = np.asarray(dist).reshape(len(movers), -1) <= reach[:, None]
         return np.flatnonzero(close.any(axis=1)), states, close
 
     def meets(self, boxes: tuple[FloatArray, FloatArray, FloatArray, FloatArray]) -> NDArray[np.bool_]:

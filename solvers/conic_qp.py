@@ -42,10 +42,17 @@ from solvers.validation import integer
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["BACKEND", "ConicQPResult", "qpsolvers_problem", "solve_conic_qp"]
+__all__ = ["BACKEND", "SETTINGS", "ConicQPResult", "qpsolvers_problem", "solve_conic_qp"]
 
 #: the qpsolvers backend
 BACKEND = "clarabel"
+
+#: Clarabel's settings beside the limits: no iterative refinement of its KKT solves. On the lateral QPs
+#: (hundreds to a thousand variables, banded) refinement took half of each solve (the elastic QP of
+#: DEU_Flensburg-58's slowest cycle: 11 ms CPU with it, 5 ms without, 18 iterations either way); without
+#: it the answers move by about 1e-6 m and meet the constraints to about 1e-10, and every answer is
+#: still checked against ``feasibility_tol`` (``solved_inaccurate`` beyond it).
+SETTINGS: dict[str, Any] = {"iterative_refinement_enable": False}
 
 #: Clarabel's statuses (qpsolvers hands Clarabel's own status over) as ours; the others are ``failed``
 _STATUS_MAP: dict[Any, SolverStatus] = {
@@ -70,18 +77,46 @@ class ConicQPResult:
     x: FloatArray
 
 
+#: matrices :func:`qpsolvers_problem` built, by what they were built from: ``("P", id(P))`` → ``(P, full)``
+#: and ``("A", id(A), masks)`` → ``(A, G, A_eq)``, the source kept beside them (an identity is only
+#: reused once its object is gone). The lateral QP's and the elastic QP's matrices are shared per knot
+#: grid (``functools.lru_cache``), and a plan hands the same grid over several times; building them
+#: again was a third of the conversion's cost. Shared, never written to; the oldest dropped first.
+_BUILT: dict[tuple[Any, ...], tuple[Any, ...]] = {}
+#: entries of :data:`_BUILT` kept
+_BUILT_SIZE = 16
+
+
+def _built(key: tuple[Any, ...], source: sp.csc_matrix, build: Any) -> tuple[Any, ...]:
+    """``build()``'s matrices for ``key``, built once while ``source`` is alive."""
+    found = _BUILT.get(key)
+    if found is not None and found[0] is source:
+        return found[1:]
+    made = build()
+    while len(_BUILT) >= _BUILT_SIZE:
+        _BUILT.pop(next(iter(_BUILT)), None)
+    _BUILT[key] = (source, *made)
+    return tuple(made)
+
+
 def qpsolvers_problem(
     P: sp.csc_matrix, q: FloatArray, A: sp.csc_matrix, lower: FloatArray, upper: FloatArray
 ) -> qpsolvers.Problem:
-    """``l ≤ Ax ≤ u`` as equalities and one-sided inequalities (see the module docstring)."""
-    full = (P + sp.triu(P, 1).T).tocsc()
+    """``l ≤ Ax ≤ u`` as equalities and one-sided inequalities (see the module docstring); the matrices
+    of a ``P`` and of an ``A`` with the same equal and finite rows as before are those built then."""
+    (full,) = _built(("P", id(P)), P, lambda: ((P + sp.triu(P, 1).T).tocsc(),))
     equal = lower == upper
     ranged = ~equal
-    rows = A[ranged]
     has_upper, has_lower = np.isfinite(upper[ranged]), np.isfinite(lower[ranged])
-    G = sp.vstack([rows[has_upper], -rows[has_lower]]).tocsc()
+
+    def build() -> tuple[sp.csc_matrix, sp.csc_matrix]:
+        rows = A[ranged]
+        return sp.vstack([rows[has_upper], -rows[has_lower]]).tocsc(), A[equal].tocsc()
+
+    masks = np.packbits(np.concatenate([equal, has_upper, has_lower])).tobytes()
+    G, A_eq = _built(("A", id(A), A.shape, masks), A, build)
     h = np.concatenate([upper[ranged][has_upper], -lower[ranged][has_lower]])
-    return qpsolvers.Problem(full, q, G, h, A[equal].tocsc(), lower[equal])
+    return qpsolvers.Problem(full, q, G, h, A_eq, lower[equal])
 
 
 def solve_conic_qp(
@@ -111,7 +146,7 @@ def solve_conic_qp(
     if P.shape != (n, n) or q.shape != (n,) or A.shape[1] != n or lower.shape != upper.shape != (A.shape[0],):
         raise ValueError("P, q, A, lower and upper do not agree in shape")
     max_iter = integer("max_iter", max_iter, low=1)
-    settings: dict[str, Any] = {"max_iter": max_iter}
+    settings: dict[str, Any] = {**SETTINGS, "max_iter": max_iter}
     if time_limit_s is not None:
         if not time_limit_s > 0 or math.isnan(time_limit_s):
             raise ValueError(f"time_limit_s: must be > 0, got {time_limit_s!r}")

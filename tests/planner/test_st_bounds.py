@@ -249,3 +249,33 @@ def test_who_is_behind_is_the_same_asked_for_any_subset_or_another_start() -> No
     assert [ob.id for ob in followers(REF, movers, 5.0)] == ["far"]  # the ego behind the first car
     assert [ob.id for ob in followers(REF, movers, 70.0)] == ["behind", "leader", "far"]
     assert [ob.id for ob in followers(REF, movers, 30.0)] == ["behind", "far"]
+
+
+def test_each_mover_is_near_the_path_within_its_own_reach() -> None:
+    """A bus among the movers does not make a car on another road near the path: each obstacle's reach is
+    twice the footprint's and its own (a car's about 16 m, a 12 m bus's about 30 m), whichever others
+    it is given with; the bounds are those of every box mapped."""
+    car_far = car("car", 60.0, 8.0, y=20.0)  # 20 m beside the path: beyond a car's reach
+    bus = DynamicObstacle("bus", 12.0, 2.5, np.column_stack((T, 60.0 + 8.0 * T, 20.0 + 0 * T, 0 * T)))
+    leader = car("leader", 60.0, 8.0)
+    path = _path()
+    along = Along.of(REF, path, _problem(car_far, bus, leader), DEFAULT_CONFIG)
+    near, _, close = along.near([car_far, bus, leader], KNOTS)
+    assert near.tolist() == [1, 2]  # the bus (its own reach) and the leader, not the car
+    assert not close[0].any() and close[1].all() and close[2].all()
+    alone, _, close_alone = along.near([car_far, leader], KNOTS)
+    assert alone.tolist() == [1] and np.array_equal(close_alone, close[[0, 2]])
+
+    problem = _problem(car_far, bus, leader)
+    fast = space_time_bounds(REF, path, problem, KNOTS, 30.0)
+    mapped_near = Along.near
+
+    def everywhere(self: Along, movers: list[DynamicObstacle], t: np.ndarray) -> Any:
+        _, states, close = mapped_near(self, movers, t)
+        return np.arange(len(movers)), states, np.ones_like(close)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(Along, "near", everywhere)
+        full = space_time_bounds(REF, path, problem, KNOTS, 30.0)
+    assert fast.upper is not None and full.upper is not None
+    assert np.array_equal(fast.upper, full.upper)

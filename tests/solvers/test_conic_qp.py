@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from solvers.conic_qp import BACKEND, solve_conic_qp
+from solvers.conic_qp import BACKEND, qpsolvers_problem, solve_conic_qp
 from solvers.result import SolverStatus
 
 
@@ -69,3 +69,26 @@ def test_misuse_raises() -> None:
         solve_conic_qp(P, q, A, lower, lower, max_iter=0)
     with pytest.raises(ValueError, match="time_limit_s"):
         solve_conic_qp(P, q, A, lower, lower, time_limit_s=0.0)
+
+
+def test_the_matrices_of_a_problem_seen_before_are_reused_and_those_built_anew() -> None:
+    """qpsolvers' ``G`` and ``A_eq`` of an ``A`` with the same equal and finite rows, and the full ``P``,
+    are those built before (not rebuilt); other bounds' finite rows give their own ``G``, and every
+    matrix is the one a fresh build gives."""
+    lower = np.array([-1.0, -1.0, -np.inf, 0.0])
+    upper = np.array([1.0, np.inf, np.inf, 0.0])
+    P, q, A = _box_qp(lower, upper)
+    first = qpsolvers_problem(P, q, A, lower, upper)
+    again = qpsolvers_problem(P, q, A, lower + 0.5, upper + 0.5)  # same equal and finite rows
+    assert again.P is first.P and again.G is first.G and again.A is first.A
+    np.testing.assert_array_equal(again.h, [1.5, 0.5, 0.5])  # h and b from these bounds
+    np.testing.assert_array_equal(again.b, [0.5])
+    other_upper = np.array([1.0, 2.0, np.inf, 0.0])  # x₁ bounded above too: another G
+    other = qpsolvers_problem(P, q, A, lower, other_upper)
+    assert other.G is not first.G and other.G.shape == (4, 3)
+    fresh = qpsolvers_problem(P.copy(), q, A.copy(), lower, other_upper)  # new objects: built anew
+    assert fresh.G is not other.G
+    for built, anew in ((other.P, fresh.P), (other.G, fresh.G), (other.A, fresh.A)):
+        assert (built != anew).nnz == 0 and built.format == anew.format == "csc"
+    dense_G = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+    np.testing.assert_array_equal(other.G.toarray(), dense_G)

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 
 import numpy as np
 import pytest
+import qpsolvers
 
-from solvers.conic_qp import solve_conic_qp
+from solvers.conic_qp import SETTINGS, qpsolvers_problem, solve_conic_qp
 from solvers.lateral_qp import LateralQPSolver
 from solvers.lateral_qp_elastic import _elastic_matrices, elastic_qp, split
 from solvers.lateral_qp_problem import LateralQPProblem, objective
@@ -85,3 +87,21 @@ def test_the_elastic_matrices_are_the_ones_built_afresh() -> None:
     assert np.array_equal(first[2].toarray(), built[1].toarray())
     moved = elastic_qp(replace(problem, d0=problem.d0 + 0.1))
     assert not np.array_equal(moved[3], first[3])  # the bounds are the problem's own
+
+
+def test_without_iterative_refinement_the_elastic_answer_is_that_with_it_to_a_micrometre() -> None:
+    """Clarabel runs without refinement of its KKT solves (:data:`solvers.conic_qp.SETTINGS`, half of a
+    lateral QP's solve): on an elastic lateral QP that must relax its bounds the answer is the refined
+    one's to 1e-5 m and meets the constraints to 1e-8."""
+    assert SETTINGS == {"iterative_refinement_enable": False}
+    problem = _corridor(n=300, width=0.2, d0=1.0)  # starts outside a narrow corridor: infeasible
+    P, q, A, lower, upper = elastic_qp(problem)
+    fast = solve_conic_qp(P, q, A, lower, upper)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        refined = qpsolvers.solve_problem(qpsolvers_problem(P, q, A, lower, upper), solver="clarabel")
+    assert fast.info.status is SolverStatus.SOLVED and refined.found
+    np.testing.assert_allclose(fast.x, refined.x, atol=1e-5, rtol=0.0)
+    assert fast.info.max_violation <= 1e-8
+    _, slack = split(problem, fast.x)
+    assert float(np.max(slack)) > 0.1  # the bounds are relaxed: a real elastic answer
