@@ -314,7 +314,8 @@ def speed_stage(
             bounds = SpaceTimeBounds(ahead.upper, lower)
             speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
             short = float(np.max(least[1:] - speed.s[1:]))
-            if speed.info.usable and max(short, speed.position_violation, speed.speed_violation) <= cfg.slack:
+            kept = max(short, speed.speed_violation) <= cfg.slack
+            if speed.info.usable and kept and speed.position_violation <= cfg.position_slack:
                 return SpeedPlan(speed, Profile.optimised(speed), tuple(c.id for c in first))
     bounds = space_time_bounds(ref, path, problem, t, start.s, config, passing)
     speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
