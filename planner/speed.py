@@ -44,7 +44,14 @@ from planner.kinematics import steering_rate_speed
 from planner.lateral import LateralPlan
 from planner.problem import Options, PlanningProblem, Vehicle
 from planner.reference import FloatArray, ReferenceLine
-from planner.st_bounds import Crossing, SpaceTimeBounds, crossings, followers, moving_obstacles, space_time_bounds
+from planner.st_bounds import (
+    Crossing,
+    SpaceTimeBounds,
+    crossings,
+    followers,
+    moving_obstacles,
+    space_time_bounds,
+)
 from planner.trajectory import Path, Trajectory, body_trajectory, sample
 from solvers.speed_problem import SpeedProblem, SpeedResult, integrate_jerk
 from solvers.speed_profiles import braking_profile, cruise_profile, limited_profile
@@ -306,17 +313,15 @@ def speed_stage(
     if go_first and not lateral.stops:
         first = pass_first(ref, path, problem, t, start, s_stop, config, passing)
         if first:
-            ahead = space_time_bounds(ref, path, problem, t, start.s, config, {*passing, *(c.id for c in first)})
+            ids = tuple(c.id for c in first)
+            ahead = space_time_bounds(ref, path, problem, t, start.s, config, {*passing, *ids})
             lower = np.max([c.before for c in first], axis=0)
-            least = np.max([c.least for c in first], axis=0)
             if ahead.lower is not None:
                 lower = np.maximum(lower, ahead.lower)
             bounds = SpaceTimeBounds(ahead.upper, lower)
             speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
-            short = float(np.max(least[1:] - speed.s[1:]))
-            kept = max(short, speed.speed_violation) <= cfg.slack
-            if speed.info.usable and kept and speed.position_violation <= cfg.position_slack:
-                return SpeedPlan(speed, Profile.optimised(speed), tuple(c.id for c in first))
+            if _in_front(speed, np.max([c.least for c in first], axis=0), cfg):
+                return SpeedPlan(speed, Profile.optimised(speed), ids)
     bounds = space_time_bounds(ref, path, problem, t, start.s, config, passing)
     speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
     if max(speed.speed_violation, speed.position_violation) > cfg.slack and jerk < cfg.emergency_jerk:
@@ -368,6 +373,15 @@ def pass_first(
         if np.all(fastest[busy] >= need):
             out.append(crossing)
     return out
+
+
+def _in_front(speed: SpeedResult, least: FloatArray, config: SpeedConfig) -> bool:
+    """Whether a profile passing in front of crossing traffic does so: usable, keeping ``least`` [m] (the
+    follower headway ahead of it) and the limit within ``slack``, the stops and the bounds ahead within
+    ``position_slack`` (else it yields; :func:`speed_stage`)."""
+    short = float(np.max(least[1:] - speed.s[1:]))
+    kept = max(short, speed.speed_violation) <= config.slack
+    return speed.info.usable and kept and speed.position_violation <= config.position_slack
 
 
 def braking(
