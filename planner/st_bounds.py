@@ -342,8 +342,8 @@ def crossings(
     mapped[:, 0] = True  # where each is at the start: on the path or not
     chosen = [leaders[k] for k in near]
     boxes = frenet_extents(ref, chosen, [states[k] for k in near], mapped)
-    hit = along.meets(boxes)  # (K, T, knots)
-    meets = hit.any(axis=2)
+    hit = np.asarray(along.meets(boxes), dtype=bool)  # (K, T, knots)
+    meets = np.asarray(hit.any(axis=2), dtype=bool)
     cos_limit = float(np.cos(speed.crossing_angle))
     out: list[Crossing] = []
     for k, ob in enumerate(chosen):
