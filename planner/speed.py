@@ -9,7 +9,10 @@ length ``σ(t)`` [m] along the path within:
   :func:`speed_limit`) and a car's steering rate's, each the lowest within ``limit_reach`` either side;
 * a stop ``σ ≤ σ_stop``: ``stop_gap`` before the last free knot of a blocked road, or the front
   ``stop_gap`` before the reference's end, or the path's end;
-* the space-time bounds of the moving obstacles (:mod:`planner.st_bounds`);
+* the space-time bounds of the moving obstacles (:mod:`planner.st_bounds`); crossing traffic the fastest
+  profile within the limits can pass in front of with the follower headway to spare is passed so, a
+  headway ahead of it (:func:`pass_first`), where the profile found keeps that and every other bound
+  (else, or where the trajectory breaks a check, it is yielded to as every obstacle ahead);
 * acceleration within the vehicle's limits and ``|jerk| ≤ jerk`` [m/s³] (``emergency_jerk`` before a
   block, when the comfortable jerk needs more than ``slack`` to keep the limits, or when braking later
   and harder keeps ahead of a follower bound by more than ``slack`` within the same limits).

@@ -10,7 +10,10 @@ profile's knot times ``t_k`` [s]:
   less ``stop_gap`` (:func:`space_time_bound`);
 * the vehicles behind it (:func:`followers`): ``σ(t_k) ≥ σ_min(t_k)``, ahead of where the footprint meets
   the box at any time in ``[t_k, t_k + follower_headway]``, plus ``stop_gap`` (:func:`follower_bound`; a
-  soft bound in the speed profile).
+  soft bound in the speed profile);
+* crossing traffic (:func:`crossings`: ahead at the start, off the path then, across it later) is one of
+  the obstacles ahead, unless the speed stage passes in front of it (:func:`planner.speed.pass_first`):
+  then ``σ(t_k)`` is ahead of where the footprint meets its box over ``[t_k, t_k + headway]`` instead.
 
 Only obstacles that come near the path at some time are mapped by TransF-κ (:meth:`Along.near`): in
 dense traffic mapping the others would be most of the stage's cost.
