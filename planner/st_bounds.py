@@ -339,15 +339,24 @@ def crossings(
     short = min(int(np.ceil(speed.follower_headway / float(t[1] - t[0]) - 1e-9)), window)
     times = t[0] + (t[1] - t[0]) * np.arange(t.size + window)  # the knots and the headway beyond them
     near, states, close = along.near(leaders, times)
-    if near.size == 0:
+    cos_limit = float(np.cos(speed.crossing_angle))
+    # Only those that come near the path at an angle to it somewhere are mapped (in dense traffic along
+    # the road, mapping the others would be most of the cost): the heading against the nearest knot's.
+    across = []
+    for k in near:
+        pose = states[k][close[k]]
+        _, knot = along.tree.query(pose[:, :2])
+        if np.any(np.cos(pose[:, 2] - along.path.heading[knot]) <= cos_limit):
+            across.append(k)
+    if not across:
         return []
+    near = np.asarray(across, dtype=np.intp)
     mapped = close[near]
     mapped[:, 0] = True  # where each is at the start: on the path or not
     chosen = [leaders[k] for k in near]
     boxes = frenet_extents(ref, chosen, [states[k] for k in near], mapped)
     hit = np.asarray(along.meets(boxes), dtype=bool)  # (K, T, knots)
     meets = np.asarray(hit.any(axis=2), dtype=bool)
-    cos_limit = float(np.cos(speed.crossing_angle))
     out: list[Crossing] = []
     for k, ob in enumerate(chosen):
         if meets[k, 0] or not meets[k].any():
