@@ -345,8 +345,8 @@ def crossings(
     across = []
     for k in near:
         pose = states[k][close[k]]
-        _, knot = along.tree.query(pose[:, :2])
-        if np.any(np.cos(pose[:, 2] - along.path.heading[knot]) <= cos_limit):
+        _, nearest = along.tree.query(pose[:, :2])
+        if np.any(np.cos(pose[:, 2] - along.path.heading[nearest]) <= cos_limit):
             across.append(k)
     if not across:
         return []
