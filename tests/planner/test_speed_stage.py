@@ -32,6 +32,7 @@ from planner.speed import (
     target_speed,
 )
 from planner.trajectory import frenet_path
+from planner.validation import Violation, ViolationKind
 
 ROAD = straight(300.0, step=5.0)
 
@@ -268,3 +269,37 @@ def test_crossing_traffic_is_passed_in_front_of_where_the_limits_allow_it_else_y
     else:  # our front short of its near side, braking for it
         assert x_then + 2.25 < 80.0 - 0.9
     assert np.max(traj.v) <= 14.0 + 1e-6 and np.max(traj.a) <= problem.vehicle.max_acceleration + 1e-6
+
+
+def test_passing_in_front_that_breaks_a_check_yields_instead(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where the profile passing in front of crossing traffic breaks a final check, the speed stage runs
+    again yielding to it, and that answer (which passes them) is the plan's."""
+    problem = PlanningProblem(
+        ROAD,
+        Lane(3.5, 3.5),
+        Ego(30.0, 0.0, 0.0, 10.0),
+        (_crossing(-70.0),),
+        Vehicle(),
+        Options(target_speed=14.0),
+    )
+    stages: list[SpeedPlan] = []
+    checked = drive._trajectory
+
+    def kept(*args: Any, **kwargs: Any) -> SpeedPlan:
+        stages.append(speed_stage(*args, **kwargs))
+        return stages[-1]
+
+    def refused(*args: Any) -> Any:
+        profile, traj, bad, note = checked(*args)
+        if args[3].first:  # the speed plan passes in front: say it hits the crossing car
+            bad = [Violation(ViolationKind.HITS_MOVING_OBSTACLE, "crossing", 5.0)]
+        return profile, traj, bad, note
+
+    monkeypatch.setattr(drive, "speed_stage", kept)
+    monkeypatch.setattr(drive, "_trajectory", refused)
+    result = plan(problem)
+    assert [stage.first for stage in stages] == [("crossing",), ()]
+    assert result.status == "ok", result.message
+    assert violations(problem, result.trajectory) == []
+    x_then = float(np.interp(6.5, result.trajectory.t, result.trajectory.x))
+    assert x_then + 2.25 < 80.0 - 0.9  # short of it as it crosses
