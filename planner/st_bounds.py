@@ -340,13 +340,19 @@ def crossings(
     times = t[0] + (t[1] - t[0]) * np.arange(t.size + window)  # the knots and the headway beyond them
     near, states, close = along.near(leaders, times)
     cos_limit = float(np.cos(speed.crossing_angle))
-    # Only those that come near the path at an angle to it somewhere are mapped (in dense traffic along
-    # the road, mapping the others would be most of the cost): the heading against the nearest knot's.
+    # Only those that come within reach of the footprint at an angle to the path somewhere are mapped (in
+    # dense traffic along the road, or beside it the other way, mapping the others would be most of the
+    # cost): their heading against the nearest knot's where their centre is within both half-diagonals
+    # and a knot spacing of it (one never that close is yielded to, as any obstacle ahead).
+    ext = along.extent
+    own = float(np.hypot(max(ext.front[0], ext.back[0]), max(ext.left[0], ext.right[0])))
     across = []
     for k in near:
         pose = states[k][close[k]]
-        _, nearest = along.tree.query(pose[:, :2])
-        if np.any(np.cos(pose[:, 2] - along.path.heading[nearest]) <= cos_limit):
+        dist, nearest = along.tree.query(pose[:, :2])
+        reach = own + 0.5 * float(np.hypot(leaders[k].length, leaders[k].width)) + along.knot_spacing
+        angled = np.cos(pose[:, 2] - along.path.heading[nearest]) <= cos_limit
+        if np.any(angled & (dist <= reach)):
             across.append(k)
     if not across:
         return []
