@@ -288,7 +288,10 @@ def test_leaders_in_the_lane_cars_merging_along_it_and_cars_behind_are_no_crossi
     leader = car("leader", 60.0, 8.0)  # on the path from the start
     merging = car("merging", 70.0, 8.0, y=np.linspace(4.5, 0.0, T.size))  # into the lane, along it
     behind = _crossing_car("behind", 20.0, -40.0, 10.0)  # crosses behind the ego
-    problem = _problem(leader, merging, behind)
+    oncoming = DynamicObstacle(  # the other way in the next lane
+        "oncoming", 4.5, 1.8, np.column_stack((T, 200.0 - 10.0 * T, 3.5 + 0 * T, np.pi + 0 * T))
+    )
+    problem = _problem(leader, merging, behind, oncoming)
     assert crossings(REF, _path(), problem, KNOTS, 30.0) == []
     # the same car coming across is one
     across = _crossing_car("across", 90.0, -40.0, 10.0)
