@@ -100,6 +100,10 @@ class SpeedConfig:
     #: the headway kept to the obstacles ahead: the gap behind is the follower's to keep, ours is not to
     #: brake into it, and the two headways together must fit between a leader and a follower.
     follower_headway: float = 0.5
+    #: a moving obstacle that first meets the path at least this far off its heading [rad] crosses it (or
+    #: comes towards it): the profile may pass in front of it, with ``headway`` to spare, where the
+    #: fastest profile within the limits can (:func:`planner.st_bounds.crossings`); else it yields
+    crossing_angle: float = 0.7853981633974483
     #: share of a car's ``max_steering_rate`` the speed limit along the path plans with [-]
     steering_rate_share: float = 0.9
     #: SQP iterations (QPs solved) of one speed profile

@@ -171,6 +171,29 @@ def drive(run: Run, solvers: Solvers, lateral: LateralPlan, candidate: Path) -> 
         profile, traj, bad, note = _trajectory(
             run.ref, run.problem, path, speed, run.static, decision.borrows
         )
+    if bad and speed.first:
+        # passing in front of crossing traffic breaks a check: yield to it as to everything ahead
+        with timer.stage("speed"):
+            speed = speed_stage(
+                solvers.speed,
+                run.ref,
+                lateral,
+                path,
+                run.problem,
+                start,
+                run.config,
+                aim,
+                decision.passing,
+                go_first=False,
+            )
+        sqp = speed.solved
+        if not sqp.info.usable:
+            failed = f"speed profile failed: {sqp.info.status}"
+            return Driven(None, failed, (path, candidate, lateral.info, sqp.info, None))
+        with timer.stage("trajectory"):
+            profile, traj, bad, note = _trajectory(
+                run.ref, run.problem, path, speed, run.static, decision.borrows
+            )
     if reason := timer.overrun("trajectory"):
         return Driven(None, reason, (path, candidate, lateral.info, sqp.info, None), overrun=True)
     if bad:

@@ -9,7 +9,10 @@ length ``σ(t)`` [m] along the path within:
   :func:`speed_limit`) and a car's steering rate's, each the lowest within ``limit_reach`` either side;
 * a stop ``σ ≤ σ_stop``: ``stop_gap`` before the last free knot of a blocked road, or the front
   ``stop_gap`` before the reference's end, or the path's end;
-* the space-time bounds of the moving obstacles (:mod:`planner.st_bounds`);
+* the space-time bounds of the moving obstacles (:mod:`planner.st_bounds`); crossing traffic the fastest
+  profile within the limits can pass in front of with the follower headway to spare is passed so, a
+  headway ahead of it (:func:`pass_first`), where the profile found keeps that and every other bound
+  (else, or where the trajectory breaks a check, it is yielded to as every obstacle ahead);
 * acceleration within the vehicle's limits and ``|jerk| ≤ jerk`` [m/s³] (``emergency_jerk`` before a
   block, when the comfortable jerk needs more than ``slack`` to keep the limits, or when braking later
   and harder keeps ahead of a follower bound by more than ``slack`` within the same limits).
@@ -44,7 +47,14 @@ from planner.kinematics import curve_speed
 from planner.lateral import LateralPlan
 from planner.problem import Options, PlanningProblem, Vehicle
 from planner.reference import FloatArray, ReferenceLine
-from planner.st_bounds import SpaceTimeBounds, followers, moving_obstacles, space_time_bounds
+from planner.st_bounds import (
+    Crossing,
+    SpaceTimeBounds,
+    crossings,
+    followers,
+    moving_obstacles,
+    space_time_bounds,
+)
 from planner.trajectory import Path, Trajectory, body_trajectory, sample
 from solvers.speed_problem import SpeedProblem, SpeedResult, integrate_jerk
 from solvers.speed_profiles import braking_profile, cruise_profile, limited_profile
@@ -127,6 +137,8 @@ class SpeedPlan:
 
     solved: SpeedResult
     profile: Profile
+    #: the crossing vehicles the profile passes in front of (:func:`pass_first`), by id
+    first: tuple[str, ...] = ()
 
 
 def profile_grid(options: Options, config: SpeedConfig = DEFAULT_CONFIG.speed) -> tuple[int, float]:
@@ -280,18 +292,33 @@ def speed_stage(
     config: PlannerConfig = DEFAULT_CONFIG,
     aim: SpeedAim | None = None,
     passing: Collection[str] = (),
+    go_first: bool = True,
 ) -> SpeedPlan:
     """The speed profile along the lateral stage's ``path`` (see the module docstring), with a goal's
     ``aim``; the moving obstacles ``passing`` overtakes are not followed
-    (:func:`planner.st_bounds.space_time_bounds`)."""
+    (:func:`planner.st_bounds.space_time_bounds`). With ``go_first``, crossing traffic the vehicle can
+    pass in front of (:func:`pass_first`) is passed so, where the profile manages it within the limits
+    (else it yields to it, as to every other obstacle ahead)."""
     cfg = config.speed
     steps, dt = profile_grid(problem.options, cfg)
     s_stop = stop_position(ref, path, lateral, config.stop_gap, problem.vehicle.front_extent)
     if aim is not None:
         s_stop = min(s_stop, aim.stop)
     t = np.arange(steps + 1, dtype=np.float64) * dt
-    bounds = space_time_bounds(ref, path, problem, t, start.s, config, passing)
     jerk = cfg.emergency_jerk if lateral.stops else cfg.jerk
+    if go_first and not lateral.stops:
+        first = pass_first(ref, path, problem, t, start, s_stop, config, passing)
+        if first:
+            ids = tuple(c.id for c in first)
+            ahead = space_time_bounds(ref, path, problem, t, start.s, config, {*passing, *ids})
+            lower = np.max([c.before for c in first], axis=0)
+            if ahead.lower is not None:
+                lower = np.maximum(lower, ahead.lower)
+            bounds = SpaceTimeBounds(ahead.upper, lower)
+            speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
+            if _in_front(speed, np.max([c.least for c in first], axis=0), cfg):
+                return SpeedPlan(speed, Profile.optimised(speed), ids)
+    bounds = space_time_bounds(ref, path, problem, t, start.s, config, passing)
     speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
     if max(speed.speed_violation, speed.position_violation) > cfg.slack and jerk < cfg.emergency_jerk:
         # The comfortable jerk cannot slow down in time (a curve or an obstacle close ahead): safety
@@ -312,6 +339,45 @@ def speed_stage(
         # s(t) as small as the limits allow, so it is the answer here (no creeping up to a block).
         profile = braking(path, problem, steps, dt, cfg)
     return SpeedPlan(speed, profile)
+
+
+def pass_first(
+    ref: ReferenceLine,
+    path: Path,
+    problem: PlanningProblem,
+    t: FloatArray,
+    start: EgoFrenet,
+    s_stop: float,
+    config: PlannerConfig = DEFAULT_CONFIG,
+    passing: Collection[str] = (),
+) -> list[Crossing]:
+    """The crossing vehicles (:func:`planner.st_bounds.crossings`) the vehicle may pass in front of along
+    ``path`` at the knot times ``t`` [s]: those whose ``least`` (the follower headway ahead of them) the
+    fastest profile within the limits (:func:`escape`: towards the speed cap, slowing where the path's
+    limit demands it) keeps at every knot, short of the stop ``s_stop`` [m]. Passing in front is then
+    never more than the vehicle can do; the speed stage still has to find a profile that keeps it."""
+    found = crossings(ref, path, problem, t, start.s, config, passing)
+    if not found:
+        return []
+    fastest = escape(path, problem, t.size - 1, float(t[1] - t[0]), config).s
+    out: list[Crossing] = []
+    for crossing in found:
+        busy = crossing.before > -np.inf
+        need = crossing.least[busy]
+        if not np.all(np.isfinite(crossing.before[busy])) or float(np.max(crossing.before[busy])) > s_stop:
+            continue  # on the path up to its end, or past a stop: no passing in front of it
+        if np.all(fastest[busy] >= need):
+            out.append(crossing)
+    return out
+
+
+def _in_front(speed: SpeedResult, least: FloatArray, config: SpeedConfig) -> bool:
+    """Whether a profile passing in front of crossing traffic does so: usable, keeping ``least`` [m] (the
+    follower headway ahead of it) and the limit within ``slack``, the stops and the bounds ahead within
+    ``position_slack`` (else it yields; :func:`speed_stage`)."""
+    short = float(np.max(least[1:] - speed.s[1:]))
+    kept = max(short, speed.speed_violation) <= config.slack
+    return speed.info.usable and kept and speed.position_violation <= config.position_slack
 
 
 def braking(

@@ -10,7 +10,10 @@ profile's knot times ``t_k`` [s]:
   less ``stop_gap`` (:func:`space_time_bound`);
 * the vehicles behind it (:func:`followers`): ``σ(t_k) ≥ σ_min(t_k)``, ahead of where the footprint meets
   the box at any time in ``[t_k, t_k + follower_headway]``, plus ``stop_gap`` (:func:`follower_bound`; a
-  soft bound in the speed profile).
+  soft bound in the speed profile);
+* crossing traffic (:func:`crossings`: ahead at the start, off the path then, across it later) is one of
+  the obstacles ahead, unless the speed stage passes in front of it (:func:`planner.speed.pass_first`):
+  then ``σ(t_k)`` is ahead of where the footprint meets its box over ``[t_k, t_k + headway]`` instead.
 
 Only obstacles that come near the path at some time are mapped by TransF-κ (:meth:`Along.near`): in
 dense traffic mapping the others would be most of the stage's cost.
@@ -288,3 +291,90 @@ def follower_bound(
     at = np.where(active, along.path.sigma[np.minimum(last + 1, hit.shape[2] - 1)], -np.inf).max(axis=0)
     bound = sliding_window_view(at, window + 1).max(axis=1)  # the most ahead over each [t_k, t_k + headway]
     return np.asarray(bound)
+
+
+@dataclass(frozen=True)
+class Crossing:
+    """A moving obstacle ahead of the ego that is off the path at the start and crosses it later (at
+    least ``crossing_angle`` off the path's heading where it first meets the footprint): its ``id`` and
+    ``before`` [m], at the profile's knot times, how far along the path the planned point must be to pass
+    in front of it — ahead of where the footprint meets its box at any time in ``[t_k, t_k + headway]``
+    while it is on the path (its first run there), plus ``stop_gap``; ``−inf`` where free, ``+inf`` where
+    its box reaches the path's end. ``least``: the same with ``follower_headway`` in place of
+    ``headway`` (the least a profile that passes in front of it must keep)."""
+
+    id: str
+    before: FloatArray
+    least: FloatArray
+
+
+def crossings(
+    ref: ReferenceLine,
+    path: Path,
+    problem: PlanningProblem,
+    t: FloatArray,
+    start_s: float,
+    config: PlannerConfig = DEFAULT_CONFIG,
+    passing: Collection[str] = (),
+) -> list[Crossing]:
+    """The moving obstacles the vehicle may pass in front of (:class:`Crossing`) at the knot times ``t``
+    [s] (evenly spaced, at least two) for an ego at ``start_s`` [m]: those :func:`space_time_bound`
+    follows (ahead at the start, not in ``passing``) whose box does not meet the footprint anywhere along
+    the path at the start but does later, first at ``crossing_angle`` or more to the path's heading
+    there (crossing or oncoming traffic, not one merging into the lane). Whether passing first is
+    possible is the speed stage's to decide (:func:`planner.speed.speed_stage`)."""
+    movers = moving_obstacles(problem)
+    if not movers:
+        return []
+    behind = _behind(ref, movers, start_s)
+    leaders = [ob for ob, back in zip(movers, behind, strict=True) if not back and ob.id not in passing]
+    if not leaders:
+        return []
+    speed = config.speed
+    along = Along.of(ref, path, problem, config)
+    window = int(np.ceil(speed.headway / float(t[1] - t[0]) - 1e-9))
+    short = min(int(np.ceil(speed.follower_headway / float(t[1] - t[0]) - 1e-9)), window)
+    times = t[0] + (t[1] - t[0]) * np.arange(t.size + window)  # the knots and the headway beyond them
+    near, states, close = along.near(leaders, times)
+    cos_limit = float(np.cos(speed.crossing_angle))
+    # Only those that come within reach of the footprint at an angle to the path somewhere are mapped (in
+    # dense traffic along the road, or beside it the other way, mapping the others would be most of the
+    # cost): their heading against the nearest knot's where their centre is within both half-diagonals
+    # and a knot spacing of it (one never that close is yielded to, as any obstacle ahead).
+    ext = along.extent
+    own = float(np.hypot(max(ext.front[0], ext.back[0]), max(ext.left[0], ext.right[0])))
+    across = []
+    for k in near:
+        pose = states[k][close[k]]
+        dist, nearest = along.tree.query(pose[:, :2])
+        reach = own + 0.5 * float(np.hypot(leaders[k].length, leaders[k].width)) + along.knot_spacing
+        angled = np.cos(pose[:, 2] - along.path.heading[nearest]) <= cos_limit
+        if np.any(angled & (dist <= reach)):
+            across.append(k)
+    if not across:
+        return []
+    near = np.asarray(across, dtype=np.intp)
+    mapped = close[near]
+    mapped[:, 0] = True  # where each is at the start: on the path or not
+    chosen = [leaders[k] for k in near]
+    boxes = frenet_extents(ref, chosen, [states[k] for k in near], mapped)
+    hit = np.asarray(along.meets(boxes), dtype=bool)  # (K, T, knots)
+    meets = np.asarray(hit.any(axis=2), dtype=bool)
+    out: list[Crossing] = []
+    for k, ob in enumerate(chosen):
+        if meets[k, 0] or not meets[k].any():
+            continue
+        first = int(np.argmax(meets[k]))
+        knot = int(np.argmax(hit[k, first]))
+        heading = float(states[near[k]][first, 2])
+        if float(np.cos(heading - along.path.heading[knot])) > cos_limit:
+            continue  # it runs along the path there: one merging in front is followed, not raced
+        run = np.arange(meets.shape[1]) >= first
+        run &= ~(np.cumsum(run & ~meets[k]) > 0)  # its first run on the path only
+        last = hit.shape[2] - 1 - np.argmax(hit[k, :, ::-1], axis=1)  # the last knot met at each time
+        ahead = along.path.sigma[np.minimum(last + 1, hit.shape[2] - 1)]
+        at = np.where(run, np.where(last + 1 < hit.shape[2], ahead, np.inf), -np.inf)
+        before = sliding_window_view(at, window + 1).max(axis=1) + config.stop_gap
+        least = sliding_window_view(at[: t.size + short], short + 1).max(axis=1) + config.stop_gap
+        out.append(Crossing(ob.id, np.asarray(before), np.asarray(least)))
+    return out

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 from scenario_roads import Road, arc_piece, follow_prediction, straight_piece
-from traffic import car
+from traffic import car, violations
 
 from planner import drive
 from planner.candidates import path_length
@@ -32,6 +32,7 @@ from planner.speed import (
     target_speed,
 )
 from planner.trajectory import frenet_path
+from planner.validation import Violation, ViolationKind
 
 ROAD = straight(300.0, step=5.0)
 
@@ -228,3 +229,77 @@ def test_behind_a_follower_bound_the_profile_brakes_later_with_the_emergency_jer
     assert later.follower_violation < early.follower_violation - 0.05
     assert later.speed_violation <= max(early.speed_violation, 0.05)
     assert harder.trajectory.v[10] > soft.trajectory.v[10]  # it keeps its speed longer
+
+
+def _crossing(y0: float) -> DynamicObstacle:
+    """A 4.5 m × 1.8 m car crossing the straight road at x = 80 m from ``y0`` [m] at 10 m/s along y."""
+    t = np.arange(0.0, 8.01, 0.5)
+    return DynamicObstacle(
+        "crossing", 4.5, 1.8, np.column_stack((t, 80.0 + 0 * t, y0 + 10.0 * t, 0.5 * np.pi + 0 * t))
+    )
+
+
+@pytest.mark.parametrize(("y0", "first"), [(-70.0, True), (-30.0, False)])
+def test_crossing_traffic_is_passed_in_front_of_where_the_limits_allow_it_else_yielded_to(
+    monkeypatch: pytest.MonkeyPatch, y0: float, first: bool
+) -> None:
+    """At 10 m/s (target 14) 50 m before a car that crosses the road 7 s from now: the profile passes in
+    front of it with a headway to spare (it would have had to stop for it 1 s after it left); one that
+    crosses 3 s from now cannot be passed so within the vehicle's limits: it is yielded to, as before."""
+    crossing = _crossing(y0)
+    problem = PlanningProblem(
+        ROAD, Lane(3.5, 3.5), Ego(30.0, 0.0, 0.0, 10.0), (crossing,), Vehicle(), Options(target_speed=14.0)
+    )
+    stages: list[SpeedPlan] = []
+
+    def kept(*args: Any, **kwargs: Any) -> SpeedPlan:
+        stages.append(speed_stage(*args, **kwargs))
+        return stages[-1]
+
+    monkeypatch.setattr(drive, "speed_stage", kept)
+    result = plan(problem)
+    assert result.status == "ok", result.message
+    assert violations(problem, result.trajectory) == []
+    assert stages[-1].first == (("crossing",) if first else ())
+    traj = result.trajectory
+    on_lane = (-y0 - 5.0) / 10.0  # when its front reaches the lane's far half [s]
+    x_then = float(np.interp(on_lane, traj.t, traj.x))
+    if first:  # our rear past its far side
+        assert x_then - 2.25 > 80.0 + 0.9
+    else:  # our front short of its near side, braking for it
+        assert x_then + 2.25 < 80.0 - 0.9
+    assert np.max(traj.v) <= 14.0 + 1e-6 and np.max(traj.a) <= problem.vehicle.max_acceleration + 1e-6
+
+
+def test_passing_in_front_that_breaks_a_check_yields_instead(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where the profile passing in front of crossing traffic breaks a final check, the speed stage runs
+    again yielding to it, and that answer (which passes them) is the plan's."""
+    problem = PlanningProblem(
+        ROAD,
+        Lane(3.5, 3.5),
+        Ego(30.0, 0.0, 0.0, 10.0),
+        (_crossing(-70.0),),
+        Vehicle(),
+        Options(target_speed=14.0),
+    )
+    stages: list[SpeedPlan] = []
+    checked = drive._trajectory
+
+    def kept(*args: Any, **kwargs: Any) -> SpeedPlan:
+        stages.append(speed_stage(*args, **kwargs))
+        return stages[-1]
+
+    def refused(*args: Any) -> Any:
+        profile, traj, bad, note = checked(*args)
+        if args[3].first:  # the speed plan passes in front: say it hits the crossing car
+            bad = [Violation(ViolationKind.HITS_MOVING_OBSTACLE, "crossing", 5.0)]
+        return profile, traj, bad, note
+
+    monkeypatch.setattr(drive, "speed_stage", kept)
+    monkeypatch.setattr(drive, "_trajectory", refused)
+    result = plan(problem)
+    assert [stage.first for stage in stages] == [("crossing",), ()]
+    assert result.status == "ok", result.message
+    assert violations(problem, result.trajectory) == []
+    x_then = float(np.interp(6.5, result.trajectory.t, result.trajectory.x))
+    assert x_then + 2.25 < 80.0 - 0.9  # short of it as it crosses

@@ -31,6 +31,7 @@ from planner.reference import build_reference
 from planner.result import PlanResult
 from planner.st_bounds import (
     Along,
+    crossings,
     followers,
     frenet_extents,
     moving_obstacles,
@@ -279,3 +280,49 @@ def test_each_mover_is_near_the_path_within_its_own_reach() -> None:
         full = space_time_bounds(REF, path, problem, KNOTS, 30.0)
     assert fast.upper is not None and full.upper is not None
     assert np.array_equal(fast.upper, full.upper)
+
+
+def _crossing_car(
+    name: str, x: float, y0: float, speed: float, heading: float = 0.5 * np.pi
+) -> DynamicObstacle:
+    """A 4.5 m × 1.8 m car crossing the road at ``x`` [m] from ``y0`` [m] at ``speed`` [m/s] (along y)."""
+    return DynamicObstacle(name, 4.5, 1.8, np.column_stack((T, x + 0 * T, y0 + speed * T, heading + 0 * T)))
+
+
+def test_a_car_crossing_the_path_later_is_a_crossing_with_the_room_to_pass_in_front_of_it() -> None:
+    """Off the path at the start, on it later, across it: ``before`` is ahead of where its box meets the
+    footprint over the next headway (plus stop_gap) while it is on the path, −inf before and after."""
+    crossing = _crossing_car(
+        "crossing", 100.0, -40.0, 10.0
+    )  # on the lane (|y| ≲ 6.5) for about t ∈ [3.4, 4.6]
+    problem = _problem(crossing)
+    found = crossings(REF, _path(), problem, KNOTS, 30.0)
+    assert [c.id for c in found] == ["crossing"]
+    before, least = found[0].before, found[0].least
+    busy = np.isfinite(before)
+    assert not busy[0] and not busy[-1] and busy.any()
+    c = DEFAULT_CONFIG
+    # its far side (x + 0.9) passed by our rear (2.25 + margin behind the centre), plus stop_gap
+    expected = 100.0 + 0.9 + 2.25 + c.obstacle_margin - 30.0 + c.stop_gap
+    assert np.all(before[busy] >= expected - 1e-9)
+    assert np.all(before[busy] <= expected + 0.5 + 1e-9)  # one knot
+    # over the headway ahead: busy a headway before it first meets the footprint; the least bound later
+    first_met = KNOTS[busy][0]
+    assert np.all(np.isfinite(least) <= busy)
+    assert KNOTS[np.isfinite(least)][0] == pytest.approx(
+        first_met + c.speed.headway - c.speed.follower_headway
+    )
+
+
+def test_leaders_in_the_lane_cars_merging_along_it_and_cars_behind_are_no_crossings() -> None:
+    leader = car("leader", 60.0, 8.0)  # on the path from the start
+    merging = car("merging", 70.0, 8.0, y=np.linspace(4.5, 0.0, T.size))  # into the lane, along it
+    behind = _crossing_car("behind", 20.0, -40.0, 10.0)  # crosses behind the ego
+    oncoming = DynamicObstacle(  # the other way in the next lane
+        "oncoming", 4.5, 1.8, np.column_stack((T, 200.0 - 10.0 * T, 3.5 + 0 * T, np.pi + 0 * T))
+    )
+    problem = _problem(leader, merging, behind, oncoming)
+    assert crossings(REF, _path(), problem, KNOTS, 30.0) == []
+    # the same car coming across is one
+    across = _crossing_car("across", 90.0, -40.0, 10.0)
+    assert [c.id for c in crossings(REF, _path(), _problem(leader, across), KNOTS, 30.0)] == ["across"]
