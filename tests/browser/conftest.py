@@ -64,7 +64,8 @@ def _free_port() -> int:
 
 @pytest.fixture(scope="session")
 def base_url(pytestconfig: pytest.Config, tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    """The service under test: ``--viewer-url``, or uvicorn started here (stopped at the end)."""
+    """The service under test: ``--viewer-url``, or ``python -m app`` (granian, as deployed) started here
+    on a free port (stopped at the end)."""
     given = pytestconfig.getoption("viewer_url")
     if given:
         yield str(given).rstrip("/")
@@ -72,8 +73,9 @@ def base_url(pytestconfig: pytest.Config, tmp_path_factory: pytest.TempPathFacto
     port = _free_port()
     log = (tmp_path_factory.mktemp("server") / "server.log").open("w")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "uvicorn", "app.main:app", "--host", "127.0.0.1", "--port", str(port)],
+        [sys.executable, "-m", "app"],
         cwd=ROOT,
+        env={**os.environ, "KAPPA_HOST": "127.0.0.1", "KAPPA_PORT": str(port)},
         stdout=log,
         stderr=subprocess.STDOUT,
     )

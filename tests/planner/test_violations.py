@@ -310,4 +310,5 @@ def test_the_lane_overshoot_is_positive_exactly_where_the_footprint_leaves_the_l
     assert np.all(d[right > 0.0] < 0.0) and np.all(d[left > 0.0] > 0.0)
     # far out on the left (d = 4 m, straight): the outer corners reach d + W/2 = 5 m, 1.5 m beyond the edge
     if ref is STRAIGHT:
-        assert left[-1] == pytest.approx(4.0 + 1.0 * np.cos(turn[-1]) + 2.0 * abs(np.sin(turn[-1])) - 3.5, abs=1e-6)
+        reach = 4.0 + 1.0 * np.cos(turn[-1]) + 2.0 * abs(np.sin(turn[-1]))
+        assert left[-1] == pytest.approx(reach - 3.5, abs=1e-6)
