@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import maximum_filter1d
 
-from planner.bounds import LateralBounds, lateral_bounds, pass_left
+from planner.bounds import KnotGeometry, LateralBounds, knot_geometry, lateral_bounds, pass_left
 from planner.collision import FrenetBoxes, box_hits, footprint_extent
 from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
 from planner.ego import EgoFrenet
@@ -386,6 +386,38 @@ def _qp_bounds(
     return LateralBounds(s=s, lower=lower, upper=upper, blocked=bounds.blocked), d_ref
 
 
+@dataclass(frozen=True)
+class _Knots:
+    """What the corridors at one stage's knots share whatever their lane margin: the side each obstacle
+    is passed on (``left_of``), the candidate's heading error [rad] per knot and the bounds'
+    :class:`planner.bounds.KnotGeometry` (computed once for the corridor with its margin and without)."""
+
+    left_of: NDArray[np.bool_]
+    heading_error: FloatArray
+    geometry: KnotGeometry
+
+
+def _knots(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    at: FloatArray,
+    d_ref: FloatArray,
+    boxes: FrenetBoxes,
+    config: PlannerConfig,
+    corridor: Lane,
+    sides: Mapping[str, bool],
+) -> _Knots:
+    """:class:`_Knots` at knots ``at`` [m] in ``corridor`` for the candidate's offsets ``d_ref`` [m], the
+    obstacles in ``sides`` passed on the side a decision fixed, the others on the candidate's."""
+    vehicle, options = problem.vehicle, problem.options
+    lane = lane_bounds(ref, corridor, at, half_width=0.5 * vehicle.width, margin=options.lateral_margin)
+    return _Knots(
+        left_of=_sides(boxes, pass_left(boxes, at, d_ref, lane.lower, lane.upper), sides),
+        heading_error=smoothed_slope(d_ref, at, config.lateral.heading_window),
+        geometry=knot_geometry(ref, corridor, at, vehicle),
+    )
+
+
 def _corridor(
     ref: ReferenceLine,
     problem: PlanningProblem,
@@ -396,13 +428,12 @@ def _corridor(
     lane_margin: float | None,
     config: PlannerConfig,
     corridor: Lane,
-    sides: Mapping[str, bool],
+    shared: _Knots,
 ) -> _Corridor:
     """Bounds at knots ``at`` in ``corridor`` (the lane, or a borrow's corridor; ``lane_margin`` [m] to
     its edges, default the options' margin) for the lateral QP tracking the candidate's offsets
-    ``d_ref`` [m], the obstacles in ``sides`` passed on the side a decision fixed."""
+    ``d_ref`` [m], with what the corridors at these knots share (``shared``: :func:`_knots`)."""
     vehicle, options = problem.vehicle, problem.options
-    lane = lane_bounds(ref, corridor, at, half_width=0.5 * vehicle.width, margin=options.lateral_margin)
     bounds = lateral_bounds(
         ref,
         corridor,
@@ -410,9 +441,10 @@ def _corridor(
         vehicle,
         margin=options.lateral_margin,
         boxes=boxes,
-        left_of=_sides(boxes, pass_left(boxes, at, d_ref, lane.lower, lane.upper), sides),
-        heading_error=smoothed_slope(d_ref, at, config.lateral.heading_window),
+        left_of=shared.left_of,
+        heading_error=shared.heading_error,
         lane_margin=lane_margin,
+        geometry=shared.geometry,
     )
     # The planned point never gets beyond this: the speed stage stops the front stop_gap before the
     # reference's end.
@@ -714,14 +746,15 @@ def lateral_stage(
     at = knots(ref, start, float(s_c[-1]), config.lateral)
     d_ref = np.interp(at, s_c, d_c)
     fixed = {} if sides is None else sides
-    corridor = _corridor(ref, problem, start, at, d_ref, boxes, None, config, surface, fixed)
+    shared = _knots(ref, problem, at, d_ref, boxes, config, surface, fixed)
+    corridor = _corridor(ref, problem, start, at, d_ref, boxes, None, config, surface, shared)
     paths = _Paths(ref, problem)
     attempt = _attempt(solver, ref, problem, start, corridor, time_left, config, braking_share, paths)
     if problem.options.lateral_margin > 0.0 and not attempt.better_than_unsolved():
         # Where the margin to the lane's edges leaves no room (a tight turn, a narrow passage), it is
         # dropped, as it is knot by knot where the lane is narrow (the margin to obstacles is kept).
         # Its QP is solved only where it could rank higher: a farther block, or a first QP unsolved.
-        relaxed = _corridor(ref, problem, start, at, d_ref, boxes, 0.0, config, surface, fixed)
+        relaxed = _corridor(ref, problem, start, at, d_ref, boxes, 0.0, config, surface, shared)
         if (relaxed.far, True, True) > attempt.rank():
             retry = _attempt(solver, ref, problem, start, relaxed, time_left, config, braking_share, paths)
             if retry.rank() > attempt.rank():
