@@ -122,6 +122,25 @@ def curve_bulge(
     return CornerReach(s=fr.s.reshape(-1, 4), reach=np.maximum(reach, 0.0))
 
 
+@dataclass(frozen=True)
+class KnotGeometry:
+    """What :func:`lateral_bounds` at knots ``s`` takes from the reference, the lane and the vehicle alone
+    (not from margins, obstacles or sides): the turning limit on ``d`` [m] per knot (``lower``, ``upper``:
+    :func:`_turning_limits`) and the footprint's corners at the least offset it leaves (``corners``:
+    :func:`curve_bulge`). The same for every set of bounds at those knots in that lane (the lateral
+    stage's corridor with and without its lane margin): computed once for both."""
+
+    lower: FloatArray
+    upper: FloatArray
+    corners: CornerReach
+
+
+def knot_geometry(ref: ReferenceLine, lane: Lane, s: FloatArray, vehicle: Vehicle) -> KnotGeometry:
+    """:class:`KnotGeometry` at knots ``s`` [m] in ``lane``."""
+    k_lower, k_upper = _turning_limits(ref, lane, s, vehicle)
+    return KnotGeometry(k_lower, k_upper, curve_bulge(ref, s, vehicle, np.clip(0.0, k_lower, k_upper)))
+
+
 def lateral_bounds(
     ref: ReferenceLine,
     lane: Lane,
@@ -133,6 +152,7 @@ def lateral_bounds(
     left_of: NDArray[np.bool_],
     heading_error: FloatArray | None = None,
     lane_margin: float | None = None,
+    geometry: KnotGeometry | None = None,
 ) -> LateralBounds:
     """Bounds at knots ``s`` [m]; ``left_of[k]`` says on which side obstacle ``k`` is passed.
 
@@ -142,15 +162,18 @@ def lateral_bounds(
     :func:`planner.collision.footprint_extent` to either side rather than ``W/2``: ``L/2·|sin θ| + W/2·cos θ``
     for the point model; for a car (planned at its rear axle) its front swings out by ``(L/2 + l_r)·sin θ``
     to the side it turns to, its rear by ``(L/2 − l_r)·sin θ`` to the other.
+
+    ``geometry``: :func:`knot_geometry` of these knots, lane and vehicle where the caller has it
+    (computed here otherwise).
     """
     theta = np.zeros_like(s) if heading_error is None else np.asarray(heading_error)
     turned_extent = footprint_extent(theta, vehicle, 0.0)
     ext_right, ext_left = turned_extent.right, turned_extent.left
     ahead, behind, half_w = vehicle.front_extent, vehicle.rear_extent, 0.5 * vehicle.width
     edge = margin if lane_margin is None else lane_margin
-    k_lower, k_upper = _turning_limits(ref, lane, s, vehicle)
-    # the corners where the path is at the least offset the turning limit leaves it (d = 0 elsewhere)
-    corners = curve_bulge(ref, s, vehicle, np.clip(0.0, k_lower, k_upper))
+    # the turning limit, and the corners where the path is at the least offset it leaves (d = 0 elsewhere)
+    geometry = knot_geometry(ref, lane, s, vehicle) if geometry is None else geometry
+    k_lower, k_upper, corners = geometry.lower, geometry.upper, geometry.corners
 
     def obstacle_edges(right: FloatArray | float, left: FloatArray | float) -> tuple[FloatArray, FloatArray]:
         """Lower and upper bound from the obstacles, for footprint half-extents ``right`` and ``left``."""

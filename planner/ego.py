@@ -74,11 +74,7 @@ def ego_frenet(ref: ReferenceLine, ego: Ego, *, max_curvature: float = np.inf) -
     else:
         following = kappa / one if one > 1e-6 else 0.0
         curvature = float(np.clip(following, -max_curvature, max_curvature))
-    dk = (
-        float(np.gradient(ref.kappa, ref.s)[np.clip(int(s / ref.spacing), 0, ref.size - 1)])
-        if ref.size > 2
-        else 0.0
-    )
+    dk = float(ref.kappa_slope[np.clip(int(s / ref.spacing), 0, ref.size - 1)]) if ref.size > 2 else 0.0
     ddd = -(dk * d + kappa * dd) * np.tan(err) + one / np.cos(err) ** 2 * (
         curvature * one / np.cos(err) - kappa
     )

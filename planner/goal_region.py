@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 from shapely.geometry.base import BaseGeometry
 
 from planner.config import DEFAULT_CONFIG, GoalConfig
-from planner.frenet import to_cartesian, to_frenet
+from planner.frenet import FrenetPoints, to_cartesian, to_frenet
 from planner.goal import GoalCircle, GoalPosition
 from planner.lane import lane_bounds
 from planner.problem import Lane, Vehicle
@@ -120,6 +120,45 @@ def centre_band(
     return lower, np.maximum(upper, lower)
 
 
+#: the last region mapped by :func:`_mapped_outline`: the reference (kept: its identity is the key) and the
+#: region's numbers (as bytes), its outline's points and their TransF-κ coordinates. A closed loop asks
+#: for the same region on the same reference (built once: :func:`planner.reference.build_reference` is
+#: cached) every cycle.
+_LAST_OUTLINE: tuple[ReferenceLine, tuple[bytes, ...], FrenetPoints] | None = None
+
+
+def _region_key(position: GoalPosition) -> tuple[bytes, ...]:
+    """The region's numbers, exactly (bytes: ``-0.0`` is not ``0.0``)."""
+    if isinstance(position, GoalCircle):
+        return (
+            b"circle",
+            np.asarray(position.center, dtype=float).tobytes(),
+            np.float64(position.radius).tobytes(),
+        )
+    polygon = np.asarray(position.polygon, dtype=float)
+    return (b"polygon", np.asarray(polygon.shape).tobytes(), polygon.tobytes())
+
+
+def _mapped_outline(ref: ReferenceLine, position: GoalPosition) -> FrenetPoints:
+    """TransF-κ coordinates of the region's outline (its boundary segmentized to :data:`OUTLINE_STEP`, at
+    most :data:`MAX_OUTLINE_POINTS` steps) and, last, a point inside it; the same region on the same
+    reference as last time is not mapped again."""
+    global _LAST_OUTLINE
+    key = _region_key(position)
+    last = _LAST_OUTLINE
+    if last is not None and last[0] is ref and last[1] == key:
+        return last[2]
+    shape = region_shape(position)
+    step = max(OUTLINE_STEP, float(shape.length) / MAX_OUTLINE_POINTS)
+    outline = np.asarray(shapely.get_coordinates(shapely.segmentize(shape.boundary, step)))
+    points = np.vstack((outline, np.asarray(shape.representative_point().coords)))
+    fr = to_frenet(ref, points)
+    for shared in (fr.s, fr.d, fr.segment, fr.nearest, fr.folded):  # kept for the next plans: never written
+        shared.setflags(write=False)
+    _LAST_OUTLINE = (ref, key, fr)
+    return fr
+
+
 def on_reference(
     ref: ReferenceLine,
     position: GoalPosition,
@@ -135,11 +174,7 @@ def on_reference(
     most ``max_knots``) is tested against the region, and so is the region's own boundary where it lies in
     the band (a region narrower than the grid's step is found all the same).
     """
-    shape = region_shape(position)
-    step = max(OUTLINE_STEP, float(shape.length) / MAX_OUTLINE_POINTS)
-    outline = np.asarray(shapely.get_coordinates(shapely.segmentize(shape.boundary, step)))
-    points = np.vstack((outline, np.asarray(shape.representative_point().coords)))
-    fr = to_frenet(ref, points)
+    fr = _mapped_outline(ref, position)
     s_min, s_max = float(fr.s.min()), float(fr.s.max())
     low, high = max(s_min, 0.0), min(s_max, s_end)
     if not high >= low:

@@ -17,14 +17,14 @@ offset and the speed profile stops before the block (:func:`hold_path`).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import maximum_filter1d
 
-from planner.bounds import LateralBounds, lateral_bounds, pass_left
+from planner.bounds import KnotGeometry, LateralBounds, knot_geometry, lateral_bounds, pass_left
 from planner.collision import FrenetBoxes, box_hits, footprint_extent
 from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
 from planner.ego import EgoFrenet
@@ -272,6 +272,51 @@ def lateral_qp(
 
 
 @dataclass(frozen=True)
+class _Paths:
+    """What one lateral stage works out about its QP answers, each once: an answer's path at its knots
+    (:func:`planner.trajectory.frenet_path`) and the knots where its footprint leaves a surface
+    (:func:`planner.validation.leaves_lane`). Several steps ask the same of one answer (the lane check
+    of the choice in :func:`_attempt_at`, the straighter path's comparison in :func:`_attempt`, the
+    stage's path and where it leaves the lane); what they get is what they computed before.
+
+    Keyed by the answer's, the knots' and the surface's identities; each entry keeps them alive, so an
+    identity is never reused while it is kept (one stage's few answers)."""
+
+    ref: ReferenceLine
+    problem: PlanningProblem
+    _paths: dict[tuple[int, int], tuple[LateralQPResult, FloatArray, Path]] = field(default_factory=dict)
+    _leaves: dict[tuple[int, int, int], tuple[LateralQPResult, FloatArray, Lane, NDArray[np.bool_]]] = field(
+        default_factory=dict
+    )
+
+    def path(self, s: FloatArray, qp: LateralQPResult) -> Path:
+        """The QP's path at its knots ``s`` [m]."""
+        key = (id(qp), id(s))
+        found = self._paths.get(key)
+        if found is None:
+            found = (qp, s, frenet_path(self.ref, s, qp.d, qp.dd, qp.ddd))
+            self._paths[key] = found
+        return found[2]
+
+    def leaves(self, s: FloatArray, qp: LateralQPResult, surface: Lane) -> NDArray[np.bool_]:
+        """Per knot of ``s`` [m], whether the footprint along the QP's path leaves ``surface`` (the lane, or
+        a borrow's corridor) there (:func:`planner.validation.leaves_lane`)."""
+        key = (id(qp), id(s), id(surface))
+        found = self._leaves.get(key)
+        if found is None:
+            path = self.path(s, qp)
+            x, y = body_centre(path.x, path.y, path.heading, self.problem.vehicle)
+            found = (qp, s, surface, leaves_lane(self.ref, self.problem, x, y, path.heading, surface))
+            self._leaves[key] = found
+        return found[3]
+
+    def in_lane(self, s: FloatArray, qp: LateralQPResult, surface: Lane) -> bool:
+        """Whether the footprint along the QP's path stays on ``surface`` at its knots ``s`` [m] (the
+        bounds are linearised at the candidate's heading; the path's own may differ)."""
+        return not bool(np.any(self.leaves(s, qp, surface)))
+
+
+@dataclass(frozen=True)
 class _Corridor:
     """One set of bounds for the QP: the bounds (cut before a block), the reference offsets at their
     knots, whether a block is the road's end, and the surface the footprint keeps to (the lane, or a
@@ -341,6 +386,38 @@ def _qp_bounds(
     return LateralBounds(s=s, lower=lower, upper=upper, blocked=bounds.blocked), d_ref
 
 
+@dataclass(frozen=True)
+class _Knots:
+    """What the corridors at one stage's knots share whatever their lane margin: the side each obstacle
+    is passed on (``left_of``), the candidate's heading error [rad] per knot and the bounds'
+    :class:`planner.bounds.KnotGeometry` (computed once for the corridor with its margin and without)."""
+
+    left_of: NDArray[np.bool_]
+    heading_error: FloatArray
+    geometry: KnotGeometry
+
+
+def _knots(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    at: FloatArray,
+    d_ref: FloatArray,
+    boxes: FrenetBoxes,
+    config: PlannerConfig,
+    corridor: Lane,
+    sides: Mapping[str, bool],
+) -> _Knots:
+    """:class:`_Knots` at knots ``at`` [m] in ``corridor`` for the candidate's offsets ``d_ref`` [m], the
+    obstacles in ``sides`` passed on the side a decision fixed, the others on the candidate's."""
+    vehicle, options = problem.vehicle, problem.options
+    lane = lane_bounds(ref, corridor, at, half_width=0.5 * vehicle.width, margin=options.lateral_margin)
+    return _Knots(
+        left_of=_sides(boxes, pass_left(boxes, at, d_ref, lane.lower, lane.upper), sides),
+        heading_error=smoothed_slope(d_ref, at, config.lateral.heading_window),
+        geometry=knot_geometry(ref, corridor, at, vehicle),
+    )
+
+
 def _corridor(
     ref: ReferenceLine,
     problem: PlanningProblem,
@@ -351,13 +428,12 @@ def _corridor(
     lane_margin: float | None,
     config: PlannerConfig,
     corridor: Lane,
-    sides: Mapping[str, bool],
+    shared: _Knots,
 ) -> _Corridor:
     """Bounds at knots ``at`` in ``corridor`` (the lane, or a borrow's corridor; ``lane_margin`` [m] to
     its edges, default the options' margin) for the lateral QP tracking the candidate's offsets
-    ``d_ref`` [m], the obstacles in ``sides`` passed on the side a decision fixed."""
+    ``d_ref`` [m], with what the corridors at these knots share (``shared``: :func:`_knots`)."""
     vehicle, options = problem.vehicle, problem.options
-    lane = lane_bounds(ref, corridor, at, half_width=0.5 * vehicle.width, margin=options.lateral_margin)
     bounds = lateral_bounds(
         ref,
         corridor,
@@ -365,9 +441,10 @@ def _corridor(
         vehicle,
         margin=options.lateral_margin,
         boxes=boxes,
-        left_of=_sides(boxes, pass_left(boxes, at, d_ref, lane.lower, lane.upper), sides),
-        heading_error=smoothed_slope(d_ref, at, config.lateral.heading_window),
+        left_of=shared.left_of,
+        heading_error=shared.heading_error,
         lane_margin=lane_margin,
+        geometry=shared.geometry,
     )
     # The planned point never gets beyond this: the speed stage stops the front stop_gap before the
     # reference's end.
@@ -387,12 +464,13 @@ def _attempt(
     time_left: Callable[[], float | None],
     config: PlannerConfig,
     braking_share: float,
+    paths: _Paths,
 ) -> _Attempt:
     """:func:`_attempt_at`; where its path bends more than :func:`straight_allowance` lets the vehicle
     cruise (a jog of the reference the lane has room to drive straight through), the QP once more with
     that allowance, whose path is taken if it converged and keeps the footprint in the lane: the speed
     profile need not slow for a bend the path can leave out."""
-    first = _attempt_at(solver, ref, problem, start, corridor, time_left, config, braking_share)
+    first = _attempt_at(solver, ref, problem, start, corridor, time_left, config, braking_share, paths)
     bounds = corridor.bounds
     if not first.qp.info.converged:
         return first
@@ -417,28 +495,20 @@ def _attempt(
         smooth=True,
         second_backend=False,
     )
-    if qp.info.converged and _in_lane(ref, problem, bounds.s, qp, corridor.surface):
+    if qp.info.converged and paths.in_lane(bounds.s, qp, corridor.surface):
         # taken only where it is faster to drive: a car's eased path through a real bend may be straighter
         # at a jog and yet need a slower curvature change for its steering rate elsewhere
         ahead = bounds.s > start.s + problem.vehicle.length
-        if _slowest(ref, problem, bounds.s, qp, ahead, config) > _slowest(
-            ref, problem, bounds.s, first.qp, ahead, config
+        if _slowest(paths.path(bounds.s, qp), problem, ahead, config) > _slowest(
+            paths.path(bounds.s, first.qp), problem, ahead, config
         ):
             return _Attempt(corridor, qp, lambda: True)
     return first
 
 
-def _slowest(
-    ref: ReferenceLine,
-    problem: PlanningProblem,
-    s: FloatArray,
-    qp: LateralQPResult,
-    where: NDArray[np.bool_],
-    config: PlannerConfig,
-) -> float:
-    """The lowest speed [m/s] the QP's path at knots ``s`` [m] can be driven at where ``where`` holds (its
-    curvature's and steering rate's limits, :func:`planner.kinematics.curve_speed`)."""
-    path = frenet_path(ref, s, qp.d, qp.dd, qp.ddd)
+def _slowest(path: Path, problem: PlanningProblem, where: NDArray[np.bool_], config: PlannerConfig) -> float:
+    """The lowest speed [m/s] a QP's ``path`` can be driven at where ``where`` holds (its curvature's and
+    steering rate's limits, :func:`planner.kinematics.curve_speed`)."""
     speed = curve_speed(
         path.sigma, path.curvature, problem.vehicle, config.limit_margin, config.speed.steering_rate_share
     )
@@ -454,6 +524,7 @@ def _attempt_at(
     time_left: Callable[[], float | None],
     config: PlannerConfig,
     braking_share: float,
+    paths: _Paths,
 ) -> _Attempt:
     """The lateral QP in ``corridor``, again with the vehicle's own curvature limit where the
     speed-dependent one leaves no solution or none that keeps the footprint in the lane; of the answers
@@ -464,24 +535,27 @@ def _attempt_at(
     if rate is not None:
         # a car whose steering rate is bounded eases into the reference's bends where that keeps its
         # footprint in the lane; else it follows the reference as the point model does
-        eased = _eased(solver, ref, problem, start, corridor, allowance, rate, time_left, config)
+        eased = _eased(solver, ref, problem, start, corridor, allowance, rate, time_left, config, paths)
         if eased is not None:
             return _Attempt(corridor, eased, lambda: True)
     qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate)
     if qp.info.converged and qp.first is None:  # OSQP solved it: nothing to choose from
-        return _Attempt(corridor, qp, lambda: _in_lane(ref, problem, bounds.s, qp, corridor.surface))
+        return _Attempt(corridor, qp, lambda: paths.in_lane(bounds.s, qp, corridor.surface))
+    if qp.info.converged and paths.in_lane(bounds.s, qp, corridor.surface):
+        # what the choice below takes (solved, in the lane, first): OSQP's iterate need not be checked
+        return _Attempt(corridor, qp, lambda: True)
     # Where the second backend answered, OSQP's own iterate comes along: an exact path may press a bound
     # linearised at the candidate's heading, and a relaxed one break the lane; the first that keeps the
     # footprint in the lane is taken.
     options = [r for r in (qp, qp.first) if r is not None and r.info.usable]
-    inside = [_in_lane(ref, problem, bounds.s, r, corridor.surface) for r in options]
+    inside = [paths.in_lane(bounds.s, r, corridor.surface) for r in options]
     if not qp.info.converged and not any(inside):
         # too fast for the road, or no path in the lane: try the vehicle's own curvature limit
         limit = config.lateral.retry_curvature_share * problem.vehicle.curvature_limit
         allowance = np.full(bounds.s.shape, limit)
         retry = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate)
         more = [r for r in (retry, retry.first) if r is not None and r.info.usable]
-        inside += [_in_lane(ref, problem, bounds.s, r, corridor.surface) for r in more]
+        inside += [paths.in_lane(bounds.s, r, corridor.surface) for r in more]
         options = options + more
         qp = retry if not options or not qp.info.usable else qp
     if options:
@@ -501,6 +575,7 @@ def _eased(
     rate: FloatArray,
     time_left: Callable[[], float | None],
     config: PlannerConfig,
+    paths: _Paths,
 ) -> LateralQPResult | None:
     """A car's lateral QP in ``corridor`` that eases into the reference's bends (:func:`lateral_qp`'s
     ``smooth``, within the curvature ``allowance`` [1/m] and curvature-rate ``rate`` [1/m²] per knot),
@@ -530,7 +605,7 @@ def _eased(
         )
         if not qp.info.converged:
             return None
-        path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
+        path = paths.path(bounds.s, qp)
         x, y = body_centre(path.x, path.y, path.heading, problem.vehicle)
         right, left = lane_overshoot(ref, problem, x, y, path.heading, corridor.surface)
         right_out, left_out = right > 0.0, left > 0.0
@@ -564,27 +639,17 @@ def _meets_obstacle(
     return bool(np.any(box_hits(corridor.boxes, s, qp.d, extent)))
 
 
-def _in_lane(
-    ref: ReferenceLine, problem: PlanningProblem, s: FloatArray, qp: LateralQPResult, surface: Lane
-) -> bool:
-    """Whether the footprint along the QP's path stays on ``surface`` (the lane, or a borrow's corridor)
-    at its knots ``s`` [m] (the bounds are linearised at the candidate's heading; the path's own may
-    differ)."""
-    path = frenet_path(ref, s, qp.d, qp.dd, qp.ddd)
-    x, y = body_centre(path.x, path.y, path.heading, problem.vehicle)
-    return not bool(np.any(leaves_lane(ref, problem, x, y, path.heading, surface)))
-
-
 def _leaves_from(
-    ref: ReferenceLine, problem: PlanningProblem, path: Path, surface: Lane, reach: float
+    paths: _Paths, s: FloatArray, qp: LateralQPResult, surface: Lane, reach: float
 ) -> int | None:
-    """The first knot of ``path`` before ``reach`` [m] (beyond it the vehicle never gets: the lane's end)
-    where the footprint leaves ``surface`` (at least 1), or None; None too where it starts outside (a
-    vehicle coming back into its lane from the road)."""
-    x, y = body_centre(path.x, path.y, path.heading, problem.vehicle)
-    if outside_lane(ref, problem, x[:1], y[:1], path.heading[:1], surface)[0]:
+    """The first knot of the QP's path at knots ``s`` [m] before ``reach`` [m] (beyond it the vehicle
+    never gets: the lane's end) where the footprint leaves ``surface`` (at least 1), or None; None too
+    where it starts outside (a vehicle coming back into its lane from the road)."""
+    path = paths.path(s, qp)
+    x, y = body_centre(path.x, path.y, path.heading, paths.problem.vehicle)
+    if outside_lane(paths.ref, paths.problem, x[:1], y[:1], path.heading[:1], surface)[0]:
         return None
-    out = np.flatnonzero(leaves_lane(ref, problem, x, y, path.heading, surface) & (path.s < reach))
+    out = np.flatnonzero(paths.leaves(s, qp, surface) & (path.s < reach))
     return None if out.size == 0 else max(int(out[0]), 1)
 
 
@@ -681,15 +746,17 @@ def lateral_stage(
     at = knots(ref, start, float(s_c[-1]), config.lateral)
     d_ref = np.interp(at, s_c, d_c)
     fixed = {} if sides is None else sides
-    corridor = _corridor(ref, problem, start, at, d_ref, boxes, None, config, surface, fixed)
-    attempt = _attempt(solver, ref, problem, start, corridor, time_left, config, braking_share)
+    shared = _knots(ref, problem, at, d_ref, boxes, config, surface, fixed)
+    corridor = _corridor(ref, problem, start, at, d_ref, boxes, None, config, surface, shared)
+    paths = _Paths(ref, problem)
+    attempt = _attempt(solver, ref, problem, start, corridor, time_left, config, braking_share, paths)
     if problem.options.lateral_margin > 0.0 and not attempt.better_than_unsolved():
         # Where the margin to the lane's edges leaves no room (a tight turn, a narrow passage), it is
         # dropped, as it is knot by knot where the lane is narrow (the margin to obstacles is kept).
         # Its QP is solved only where it could rank higher: a farther block, or a first QP unsolved.
-        relaxed = _corridor(ref, problem, start, at, d_ref, boxes, 0.0, config, surface, fixed)
+        relaxed = _corridor(ref, problem, start, at, d_ref, boxes, 0.0, config, surface, shared)
         if (relaxed.far, True, True) > attempt.rank():
-            retry = _attempt(solver, ref, problem, start, relaxed, time_left, config, braking_share)
+            retry = _attempt(solver, ref, problem, start, relaxed, time_left, config, braking_share, paths)
             if retry.rank() > attempt.rank():
                 attempt = retry
     bounds, qp, road_end = attempt.corridor.bounds, attempt.qp, attempt.corridor.road_end
@@ -697,12 +764,12 @@ def lateral_stage(
     # the checks decide, but where it leaves the lane and a block lies ahead, holding the offset is safer.
     held = bounds.blocked is not None and not (qp.info.converged or attempt.in_lane)
     if qp.info.usable and not held:
-        path = frenet_path(ref, bounds.s, qp.d, qp.dd, qp.ddd)
+        path = paths.path(bounds.s, qp)
         if bounds.blocked is None and not attempt.in_lane:
             # the bounds let the footprint through where the path leaves the lane: that is the block
             # (stop before it; the lane decision may borrow the road round it)
             reach = ref.length - problem.vehicle.front_extent - config.stop_gap
-            out = _leaves_from(ref, problem, path, attempt.corridor.surface, reach)
+            out = _leaves_from(paths, bounds.s, qp, attempt.corridor.surface, reach)
             if out is not None:
                 return LateralPlan(path, qp.info, bounds, out, False, leaves=True)
         return LateralPlan(path, qp.info, bounds, bounds.blocked, road_end)

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -47,6 +48,12 @@ DUPLICATE_TOLERANCE = 1e-6
 MAX_VERTEX_TURN = np.radians(170.0)
 #: largest heading change between adjacent samples of the fitted curve [rad] (a loop or cusp)
 MAX_SAMPLE_TURN = np.radians(45.0)
+
+
+def _read_only(a: FloatArray) -> FloatArray:
+    """``a``, made read-only (a reference's arrays are shared by every plan on it)."""
+    a.setflags(write=False)
+    return a
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,13 +115,24 @@ class ReferenceLine:
         dot = np.einsum("ij,ij->i", a, b)
         return float(np.max(np.abs(np.arctan2(cross, dot))))
 
+    @cached_property
+    def unwrapped_heading(self) -> FloatArray:
+        """``heading`` without its 2π jumps [rad], shape (M,) (computed once: every path asks for it)."""
+        return _read_only(np.unwrap(self.heading))
+
+    @cached_property
+    def kappa_slope(self) -> FloatArray:
+        """``dκ/ds`` at each sample by central differences (``np.gradient``) [1/m²], shape (M,)
+        (computed once: every path asks for it)."""
+        return _read_only(np.gradient(self.kappa, self.s))
+
     def kappa_at(self, s: ArrayLike) -> FloatArray:
         """Curvature κ(s) [1/m], linear between samples, held constant beyond the ends."""
         return np.interp(np.asarray(s, dtype=float), self.s, self.kappa)
 
     def heading_at(self, s: ArrayLike) -> FloatArray:
         """Heading θ(s) of the smooth reference [rad], interpolated between samples."""
-        return np.interp(np.asarray(s, dtype=float), self.s, np.unwrap(self.heading))
+        return np.interp(np.asarray(s, dtype=float), self.s, self.unwrapped_heading)
 
 
 def clean_polyline(

@@ -47,7 +47,7 @@ def frenet_path(ref: ReferenceLine, s: FloatArray, d: FloatArray, dd: FloatArray
     """The Cartesian path of a lateral profile (see the module docstring)."""
     xy = to_cartesian(ref, s, d)
     kappa = ref.kappa_at(s)
-    dkappa = np.interp(s, ref.s, np.gradient(ref.kappa, ref.s)) if ref.size > 2 else np.zeros_like(s)
+    dkappa = np.interp(s, ref.s, ref.kappa_slope) if ref.size > 2 else np.zeros_like(s)
     one = 1.0 - kappa * d
     dtheta = np.arctan2(dd, one)
     cos, tan = np.cos(dtheta), np.tan(dtheta)

@@ -5,11 +5,22 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from planner.frenet import to_frenet
 from planner.goal import GoalCircle, GoalPolygon
-from planner.goal_region import along_path, centre_band, distance_to, inside, on_reference
+from planner.goal_region import (
+    OUTLINE_STEP,
+    _mapped_outline,
+    along_path,
+    centre_band,
+    distance_to,
+    inside,
+    on_reference,
+    region_shape,
+)
 from planner.problem import Lane, Vehicle
 from planner.reference import build_reference
 from planner.roads import arc, straight
@@ -104,3 +115,25 @@ def test_the_first_stretch_of_a_path_inside_is_the_centres() -> None:
     assert along_path(path, region, car, (40.0, 50.0)) == pytest.approx((40.0 - 1.35, 50.0 - 1.35), abs=0.06)
     assert along_path(path, box(40.0, 50.0, 2.0, 3.0), Vehicle(), (40.0, 50.0)) is None  # beside it
     assert along_path(path, box(140.0, 150.0, -1.0, 1.0), Vehicle(), (140.0, 150.0)) is None  # beyond it
+
+
+def test_the_same_region_on_the_same_reference_is_mapped_once_and_exactly_as_anew() -> None:
+    """A closed loop asks for the same region on the same (cached) reference every cycle: its outline's
+    TransF-κ coordinates are kept, the same numbers as mapped anew; any other region (a centre of -0.0
+    rather than 0.0 included) or reference is mapped again."""
+    ref = build_reference(arc(40.0, 1.0, step=2.0))
+    circle = GoalCircle(np.array([0.0, 40.0]), 2.0)
+    first = _mapped_outline(ref, circle)
+    again = _mapped_outline(ref, GoalCircle(np.array([0.0, 40.0]), 2.0))  # another object, same numbers
+    assert again is first
+    shape = region_shape(circle)
+    outline = shapely.get_coordinates(shapely.segmentize(shape.boundary, OUTLINE_STEP))
+    anew = to_frenet(ref, np.vstack((outline, np.asarray(shape.representative_point().coords))))
+    assert np.array_equal(first.s, anew.s) and np.array_equal(first.d, anew.d)
+    assert not first.s.flags.writeable
+    assert _mapped_outline(ref, GoalCircle(np.array([-0.0, 40.0]), 2.0)) is not first
+    assert _mapped_outline(STRAIGHT, circle) is not _mapped_outline(ref, circle)
+    polygon = GoalPolygon(np.array([[10.0, -1.0], [14.0, -1.0], [14.0, 1.0], [10.0, 1.0]]))
+    moved = GoalPolygon(np.array([[10.0, -1.0], [14.0, -1.0], [14.0, 1.5], [10.0, 1.0]]))
+    assert _mapped_outline(STRAIGHT, polygon) is _mapped_outline(STRAIGHT, polygon)
+    assert not np.array_equal(_mapped_outline(STRAIGHT, moved).d, _mapped_outline(STRAIGHT, polygon).d)

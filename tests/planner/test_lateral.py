@@ -24,9 +24,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import shapely
 from scenario_roads import Road, arc_piece, straight_piece
 
-from planner.bounds import LateralBounds
+from planner.bounds import LateralBounds, knot_geometry, lateral_bounds
+from planner.collision import frenet_boxes
 from planner.config import DEFAULT_CONFIG, LateralConfig
 from planner.ego import EgoFrenet
 from planner.lateral import (
@@ -432,3 +434,36 @@ def test_a_jog_in_a_lane_without_room_is_followed_as_before() -> None:
     traj = result.trajectory
     assert np.min(traj.v) < 19.0  # slows for the jog it cannot leave out
     assert np.max(traj.v**2 * np.abs(traj.curvature)) <= CAR.max_lateral_acceleration + 1e-6
+
+
+def test_bounds_with_the_knots_geometry_given_are_the_bounds_computed_whole() -> None:
+    """The lateral stage computes the turning limits and corners at its knots once for the corridor with
+    its lane margin and without (:func:`planner.bounds.knot_geometry`): the bounds are the same numbers as
+    computed whole, with either margin, in a bend tight enough that corners bulge and an obstacle in it."""
+    road = Road([straight_piece(20.0), arc_piece(6.0, 1.5), straight_piece(20.0)])
+    ref = build_reference(road.polyline(0.5))
+    lane = Lane(2.0, 2.0)
+    s = np.arange(2.0, 40.0, 0.5)
+    boxes = frenet_boxes(ref, [("box", shapely.box(14.0, 0.8, 16.0, 2.5))])
+    left_of = np.zeros(1, dtype=bool)
+    geometry = knot_geometry(ref, lane, s, CAR_WITH_AXLE)
+    assert np.any(geometry.corners.reach > 0.0)  # corners bulge out of the bend
+    for lane_margin in (None, 0.0):
+        whole, shared = (
+            lateral_bounds(
+                ref,
+                lane,
+                s,
+                CAR_WITH_AXLE,
+                margin=0.3,
+                boxes=boxes,
+                left_of=left_of,
+                lane_margin=lane_margin,
+                geometry=given,
+            )
+            for given in (None, geometry)
+        )
+        assert np.array_equal(whole.lower, shared.lower) and np.array_equal(whole.upper, shared.upper)
+        assert whole.blocked == shared.blocked
+    # the obstacle narrows the bounds beside it
+    assert np.all(whole.upper[(s > 13.0) & (s < 17.0)] < 0.8)

@@ -164,6 +164,20 @@ def test_arrays_are_read_only():
         ref.points[0, 0] = 1.0
     with pytest.raises(ValueError):
         ref.kappa[0] = 1.0
+    with pytest.raises(ValueError):
+        ref.unwrapped_heading[0] = 1.0
+    with pytest.raises(ValueError):
+        ref.kappa_slope[0] = 1.0
+
+
+def test_cached_heading_and_curvature_slope_are_what_they_stand_for():
+    ref = build_reference(ROADS["u_turn"])  # the heading passes ±π: unwrapped, it must not jump
+    assert np.array_equal(ref.unwrapped_heading, np.unwrap(ref.heading))
+    assert np.max(np.abs(np.diff(ref.unwrapped_heading))) < 0.2
+    assert ref.unwrapped_heading is ref.unwrapped_heading  # computed once
+    assert np.array_equal(ref.kappa_slope, np.gradient(ref.kappa, ref.s))
+    s = np.linspace(0.0, ref.length, 57)
+    assert np.array_equal(ref.heading_at(s), np.interp(s, ref.s, np.unwrap(ref.heading)))
 
 
 @settings(max_examples=60, deadline=None)
