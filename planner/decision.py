@@ -47,9 +47,8 @@ from planner.ego import EgoFrenet
 from planner.frenet import to_frenet
 from planner.lane import Corridor, Side, corridor_width, lane_bounds
 from planner.lateral import LateralPlan, knots
-from planner.problem import Lane, PlanningProblem, Road
+from planner.problem import Lane, PlanningProblem, Road, target_speed
 from planner.reference import FloatArray, ReferenceLine
-from planner.speed import target_speed
 from planner.traffic import oncoming, slow_vehicle
 
 

@@ -23,8 +23,8 @@ from enum import StrEnum
 import numpy as np
 
 from planner.config import DEFAULT_CONFIG, PlannerConfig
-from planner.problem import PlanningProblem
-from planner.speed import Profile, speed_cap, speed_limit
+from planner.problem import PlanningProblem, speed_cap
+from planner.speed import Profile, speed_limit
 from planner.trajectory import Path
 from planner.validation import Violation, ViolationKind
 

@@ -68,9 +68,9 @@ from planner.goal_region import (
     on_reference,
 )
 from planner.lane import lane_bounds
-from planner.problem import Options, PlanningProblem
+from planner.problem import Options, PlanningProblem, target_speed
 from planner.reference import FloatArray, ReferenceLine
-from planner.speed import SpeedAim, profile_grid, target_speed
+from planner.speed import SpeedAim, profile_grid
 from planner.trajectory import Path
 from solvers.lateral_qp import LateralWeights
 

@@ -30,7 +30,7 @@ from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
 from planner.ego import EgoFrenet
 from planner.kinematics import body_centre, curve_speed, lateral_curvature
 from planner.lane import lane_bounds
-from planner.problem import Lane, PlanningProblem
+from planner.problem import Lane, PlanningProblem, speed_cap
 from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Path, frenet_path
 from planner.validation import lane_overshoot, leaves_lane, outside_lane
@@ -122,19 +122,6 @@ def curvature_rate_allowance(
         return np.asarray(np.where(speed > 0.0, rate / np.maximum(speed, 1e-300), np.inf))
 
 
-def cruise_speed(problem: PlanningProblem) -> float:
-    """The speed [m/s] the plan would cruise at unhindered: the highest of the ego's speed and the speed
-    cap (:func:`planner.speed.speed_cap`: ``options.speed_limit``, else the target, else the vehicle's
-    max speed), within the vehicle's max speed."""
-    options, vehicle = problem.options, problem.vehicle
-    cap = options.speed_limit if options.speed_limit is not None else options.target_speed
-    if cap is None:
-        cap = vehicle.max_speed
-    if options.target_speed is not None:
-        cap = max(cap, options.target_speed)
-    return float(min(max(cap, problem.ego.speed), vehicle.max_speed))
-
-
 def straight_allowance(
     s: FloatArray,
     ref: ReferenceLine,
@@ -146,10 +133,12 @@ def straight_allowance(
     where the reference only jogs: in a window of ``straight_window`` [m] holding the knot, the
     reference's curvatures of either sign cancel out (their mean is less than ``jog_share`` of their mean
     magnitude — a kink of a fitted map, an S-shift), the curvature at ``limit_margin · a_lat,max`` for
-    :func:`cruise_speed`, never below the magnitude of the mean curvature around the knot; a bend of the
-    road (one sign: its entry, its arc, its exit) keeps ``allowance``. Never above ``allowance``."""
+    the cruise speed (the speed cap, or the ego's own where faster), never below the magnitude of the
+    mean curvature around the knot; a bend of the road (one sign: its entry, its arc, its exit) keeps
+    ``allowance``. Never above ``allowance``."""
     v = problem.vehicle
-    speed = cruise_speed(problem)
+    # the speed it would cruise at unhindered: the speed cap, or the ego's own where that is faster
+    speed = min(max(speed_cap(problem), problem.ego.speed), v.max_speed)
     cruise = lateral_curvature(config.limit_margin * v.max_lateral_acceleration / max(speed * speed, 1.0), v)
     half = 0.5 * config.lateral.straight_window
     grid = np.linspace(s[0] - half, s[-1] + half, max(3, int(np.ceil((s[-1] - s[0] + 2 * half) / 0.5)) + 1))
@@ -470,17 +459,18 @@ def _attempt(
     cruise (a jog of the reference the lane has room to drive straight through), the QP once more with
     that allowance, whose path is taken if it converged and keeps the footprint in the lane: the speed
     profile need not slow for a bend the path can leave out."""
-    first = _attempt_at(solver, ref, problem, start, corridor, time_left, config, braking_share, paths)
     bounds = corridor.bounds
+    allowance = curvature_allowance(bounds.s, start, problem, config, braking_share)
+    rate = curvature_rate_allowance(bounds.s, start, problem, config, braking_share)
+    first = _attempt_at(solver, ref, problem, start, corridor, time_left, config, allowance, rate, paths)
     if not first.qp.info.converged:
         return first
-    allowance = curvature_allowance(bounds.s, start, problem, config, braking_share)
     straight = straight_allowance(bounds.s, ref, problem, allowance, config)
     bent = np.abs(path_curvature(ref, bounds.s, first.qp)) > straight + config.lateral.straight_slack
     # only beyond the first knots: the ego's own curvature at the start is a measurement
-    if not np.any(bent[bounds.s > start.s + problem.vehicle.length]):
+    ahead = bounds.s > start.s + problem.vehicle.length
+    if not np.any(bent[ahead]):
         return first
-    rate = curvature_rate_allowance(bounds.s, start, problem, config, braking_share)
     # optional: what OSQP does not settle within its iterations is not worth the second backend's time
     qp = lateral_qp(
         solver,
@@ -495,15 +485,14 @@ def _attempt(
         smooth=True,
         second_backend=False,
     )
-    if qp.info.converged and paths.in_lane(bounds.s, qp, corridor.surface):
-        # taken only where it is faster to drive: a car's eased path through a real bend may be straighter
-        # at a jog and yet need a slower curvature change for its steering rate elsewhere
-        ahead = bounds.s > start.s + problem.vehicle.length
-        if _slowest(paths.path(bounds.s, qp), problem, ahead, config) > _slowest(
-            paths.path(bounds.s, first.qp), problem, ahead, config
-        ):
-            return _Attempt(corridor, qp, lambda: True)
-    return first
+    if not (qp.info.converged and paths.in_lane(bounds.s, qp, corridor.surface)):
+        return first
+    # taken only where it is faster to drive: a car's eased path through a real bend may be straighter at
+    # a jog and yet need a slower curvature change for its steering rate elsewhere
+    faster = _slowest(paths.path(bounds.s, qp), problem, ahead, config) > _slowest(
+        paths.path(bounds.s, first.qp), problem, ahead, config
+    )
+    return _Attempt(corridor, qp, lambda: True) if faster else first
 
 
 def _slowest(path: Path, problem: PlanningProblem, where: NDArray[np.bool_], config: PlannerConfig) -> float:
@@ -523,15 +512,16 @@ def _attempt_at(
     corridor: _Corridor,
     time_left: Callable[[], float | None],
     config: PlannerConfig,
-    braking_share: float,
+    allowance: FloatArray,
+    rate: FloatArray | None,
     paths: _Paths,
 ) -> _Attempt:
-    """The lateral QP in ``corridor``, again with the vehicle's own curvature limit where the
+    """The lateral QP in ``corridor`` within the curvature ``allowance`` [1/m] and, for a car, the
+    curvature-rate ``rate`` [1/m²] per knot (:func:`curvature_allowance`,
+    :func:`curvature_rate_allowance`), again with the vehicle's own curvature limit where the
     speed-dependent one leaves no solution or none that keeps the footprint in the lane; of the answers
     (and OSQP's own iterates beside the second backend's), the first in the lane, then solved."""
     bounds, d_ref = corridor.bounds, corridor.d_ref
-    allowance = curvature_allowance(bounds.s, start, problem, config, braking_share)
-    rate = curvature_rate_allowance(bounds.s, start, problem, config, braking_share)
     if rate is not None:
         # a car whose steering rate is bounded eases into the reference's bends where that keeps its
         # footprint in the lane; else it follows the reference as the point model does

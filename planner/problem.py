@@ -479,6 +479,24 @@ class PlanningProblem:
         object.__setattr__(self, "obstacles", obstacles)
 
 
+def target_speed(problem: PlanningProblem) -> float:
+    """The speed the profile cruises at [m/s]: the options' target (without one, the speed limit, else the
+    vehicle's max speed) within the vehicle's max speed."""
+    options = problem.options
+    target = options.target_speed
+    if target is None:
+        target = problem.vehicle.max_speed if options.speed_limit is None else options.speed_limit
+    return min(target, problem.vehicle.max_speed)
+
+
+def speed_cap(problem: PlanningProblem) -> float:
+    """The fastest the profile may drive [m/s]: ``options.speed_limit`` within the vehicle's max speed (at
+    least the target), else the target speed (:func:`target_speed`)."""
+    limit = problem.options.speed_limit
+    target = target_speed(problem)
+    return target if limit is None else max(min(limit, problem.vehicle.max_speed), target)
+
+
 def _check_count(widths: Lane, points: int) -> None:
     """Per-point widths of a lane or road come one per reference point."""
     for name in ("left_width", "right_width"):

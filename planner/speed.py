@@ -45,7 +45,7 @@ from planner.config import DEFAULT_CONFIG, PlannerConfig, SpeedConfig
 from planner.ego import EgoFrenet
 from planner.kinematics import curve_speed
 from planner.lateral import LateralPlan
-from planner.problem import Options, PlanningProblem, Vehicle
+from planner.problem import Options, PlanningProblem, Vehicle, speed_cap, target_speed
 from planner.reference import FloatArray, ReferenceLine
 from planner.st_bounds import (
     Crossing,
@@ -145,24 +145,6 @@ def profile_grid(options: Options, config: SpeedConfig = DEFAULT_CONFIG.speed) -
     """Steps of the speed profile and their length [s]."""
     steps = int(min(config.steps, max(1, round(options.horizon_time / options.dt))))
     return steps, options.horizon_time / steps
-
-
-def target_speed(problem: PlanningProblem) -> float:
-    """The speed the profile cruises at [m/s]: the options' target (without one, the speed limit, else the
-    vehicle's max speed) within the vehicle's max speed."""
-    options = problem.options
-    target = options.target_speed
-    if target is None:
-        target = problem.vehicle.max_speed if options.speed_limit is None else options.speed_limit
-    return min(target, problem.vehicle.max_speed)
-
-
-def speed_cap(problem: PlanningProblem) -> float:
-    """The fastest the profile may drive [m/s]: ``options.speed_limit`` within the vehicle's max speed (at
-    least the target), else the target speed (:func:`target_speed`)."""
-    limit = problem.options.speed_limit
-    target = target_speed(problem)
-    return target if limit is None else max(min(limit, problem.vehicle.max_speed), target)
 
 
 def reach_speed(ref: ReferenceLine, problem: PlanningProblem, start_s: float) -> float | None:

@@ -108,7 +108,7 @@ def space_time_bounds(
     # ahead of the ego at the start, the followers behind it.
     behind = _behind(ref, movers, start_s)
     # where an obstacle was a headway ago, not where it is: a gap that grows with its speed
-    leaders = [ob for ob, back in zip(movers, behind, strict=True) if not back and ob.id not in passing]
+    leaders = _leaders(movers, behind, passing)
     upper = space_time_bound(along, leaders, np.maximum(t - speed.headway, 0.0), start_s) if leaders else None
     rear = [ob for ob, back in zip(movers, behind, strict=True) if back]
     lower = (
@@ -246,6 +246,14 @@ def _behind(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float) -
     return np.array([known[id(ob)][1] for ob in movers], dtype=bool)
 
 
+def _leaders(
+    movers: list[DynamicObstacle], behind: NDArray[np.bool_], passing: Collection[str]
+) -> list[DynamicObstacle]:
+    """The movers the space-time bound follows: those not ``behind`` the ego at the start
+    (:func:`_behind`), nor overtaken (``passing``)."""
+    return [ob for ob, back in zip(movers, behind, strict=True) if not back and ob.id not in passing]
+
+
 def followers(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float) -> list[DynamicObstacle]:
     """The moving obstacles behind the ego at the start (see :func:`_behind`)."""
     return [ob for ob, behind in zip(movers, _behind(ref, movers, start_s), strict=True) if behind]
@@ -326,8 +334,7 @@ def crossings(
     movers = moving_obstacles(problem)
     if not movers:
         return []
-    behind = _behind(ref, movers, start_s)
-    leaders = [ob for ob, back in zip(movers, behind, strict=True) if not back and ob.id not in passing]
+    leaders = _leaders(movers, _behind(ref, movers, start_s), passing)
     if not leaders:
         return []
     speed = config.speed

@@ -16,9 +16,8 @@ from planner.collision import FrenetBoxes, prediction_at
 from planner.config import PlannerConfig
 from planner.ego import EgoFrenet
 from planner.lane import Corridor
-from planner.problem import DynamicObstacle, PlanningProblem
+from planner.problem import DynamicObstacle, PlanningProblem, target_speed
 from planner.reference import FloatArray, ReferenceLine
-from planner.speed import target_speed
 from planner.st_bounds import frenet_extents, moving_obstacles
 
 

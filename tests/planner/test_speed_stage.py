@@ -15,7 +15,17 @@ from planner import drive
 from planner.candidates import path_length
 from planner.config import DEFAULT_CONFIG
 from planner.pipeline import plan
-from planner.problem import DynamicObstacle, Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
+from planner.problem import (
+    DynamicObstacle,
+    Ego,
+    Lane,
+    Options,
+    PlanningProblem,
+    PolygonObstacle,
+    Vehicle,
+    speed_cap,
+    target_speed,
+)
 from planner.reference import build_reference
 from planner.roads import straight
 from planner.speed import (
@@ -26,10 +36,8 @@ from planner.speed import (
     keep_speed,
     profile_grid,
     reach_speed,
-    speed_cap,
     speed_limit,
     speed_stage,
-    target_speed,
 )
 from planner.trajectory import frenet_path
 from planner.validation import Violation, ViolationKind
