@@ -15,7 +15,7 @@ from shapely.geometry.base import BaseGeometry
 
 from planner.candidates import CandidateSet
 from planner.config import PlannerConfig
-from planner.decision import KEEP_LANE, Decision, ReasonKind
+from planner.decision import KEEP_LANE, Decision
 from planner.ego import EgoFrenet
 from planner.fallback import fallback
 from planner.follower import UnescapedFollower
@@ -203,8 +203,9 @@ def drive(run: Run, solvers: Solvers, lateral: LateralPlan, candidate: Path) -> 
         return Driven(None, failed, (path, candidate, lateral.info, sqp.info, sqp))
     status: Status = "stopped" if lateral.stops else "ok"
     message = _message(lateral, start) + note
-    if decision.borrows or (lateral.stops and decision.reason.kind is not ReasonKind.NO_ROAD):
-        message += f"; {decision.reason.message}"  # why it leaves the lane, or why it stops in it
+    if decision.borrows or lateral.stops:
+        # why it leaves the lane, or why it stops in it: what blocks (an obstacle's id, or the bend)
+        message += f"; {decision.reason.message}"
     stop_s = lateral.stop_s(run.config.stop_gap) if lateral.stops else None
     if stop_s is not None:  # the planned point's stop; the centre is rear_offset ahead of a car's
         stop_s += run.problem.vehicle.rear_offset

@@ -94,6 +94,7 @@ def test_a_parked_truck_without_road_stops_as_before_and_says_what_blocks() -> N
         "truck",
     )
     assert "obstacle truck blocks the lane" in reason.message
+    assert "obstacle truck blocks the lane" in result.message  # the answer names what blocks
 
 
 def test_a_parked_truck_with_the_opposite_lane_free_is_passed_on_the_left() -> None:
@@ -200,6 +201,7 @@ def test_without_road_the_hairpin_stops_before_the_bend() -> None:
     assert result.status == "stopped"
     reason = result.diagnostics.decision.reason
     assert (reason.kind, reason.block) == (ReasonKind.NO_ROAD, BlockKind.BEND)
+    assert "the bend at s = " in result.message and "tighter than the vehicle can take" in result.message
 
 
 def test_a_road_no_wider_than_the_lane_keeps_it_and_says_so() -> None:
