@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.collision import FrenetBoxes, box_corners, footprint_extent
+from planner.collision import LEFT_SIDE, RIGHT_SIDE, FrenetBoxes, footprint_extent, outline_points
 from planner.frenet import to_cartesian, to_frenet
 from planner.lane import lane_bounds
 from planner.problem import Lane, Vehicle
@@ -69,14 +69,16 @@ def roomier_left(
     return np.asarray(upper[at] - boxes.d_max >= boxes.d_min - lower[at], dtype=bool)
 
 
-#: the footprint's corners in :func:`planner.collision.box_corners`' order, by side
-RIGHT_CORNERS, LEFT_CORNERS = (0, 1), (2, 3)
+#: the footprint's outline points (:func:`planner.collision.outline_points`: corners and points along the
+#: sides) by side
+RIGHT_CORNERS, LEFT_CORNERS = RIGHT_SIDE, LEFT_SIDE
 
 
 @dataclass(frozen=True)
 class CornerReach:
-    """The footprint's corners when its planned point is on a knot, aligned with the reference, each of shape
-    ``(n, 4)`` (rear right, front right, front left, rear left): their arc lengths ``s`` [m] on the
+    """The footprint's outline when its planned point is on a knot, aligned with the reference, each of shape
+    ``(n, 10)`` (its corners, rear right, front right, front left, rear left, then points along its right
+    and left sides: :func:`planner.collision.outline_points`): their arc lengths ``s`` [m] on the
     reference and how far [m] each reaches beyond the side it is on (0 where it stays within ``W/2``)."""
 
     s: FloatArray
@@ -84,19 +86,20 @@ class CornerReach:
 
     @property
     def left(self) -> FloatArray:
-        """The most any corner reaches out on the left, per knot [m]."""
+        """The most any point reaches out on the left, per knot [m]."""
         return np.asarray(self.reach[:, LEFT_CORNERS].max(axis=1))
 
     @property
     def right(self) -> FloatArray:
-        """The most any corner reaches out on the right, per knot [m]."""
+        """The most any point reaches out on the right, per knot [m]."""
         return np.asarray(self.reach[:, RIGHT_CORNERS].max(axis=1))
 
 
 def curve_bulge(
     ref: ReferenceLine, s: FloatArray, vehicle: Vehicle, d: FloatArray | None = None
 ) -> CornerReach:
-    """The footprint's corners at knots ``s`` [m], its planned point at offsets ``d`` [m] (default 0) and
+    """The footprint's corners and points along its sides (:func:`planner.collision.outline_points`) at
+    knots ``s`` [m], its planned point at offsets ``d`` [m] (default 0) and
     its axis along the reference's heading there, mapped to Frenet coordinates by TransF-κ as the
     trajectory checks map them. The footprint is placed from the planned point along that heading: its
     centre is the point for the point model, ``l_r`` ahead of a car's rear axle.
@@ -106,7 +109,8 @@ def curve_bulge(
     ahead of the planned point, and ``κb²/2`` of the rear, ``b = L/2 − l_r`` behind it, less where the
     curve tightens under one end only), a left turn to the right and a right turn to the left. And on a
     curve the outer corners lie less than ``f`` ahead of and ``b`` behind the point along the reference
-    (about ``f/(1 + |κ|(d + W/2))`` on the outside).
+    (about ``f/(1 + |κ|(d + W/2))`` on the outside). On the inside, a side between its corners reaches
+    out where the reference bends under it (a body placed ahead of its planned point, as a car's).
     """
     d0 = np.zeros_like(s) if d is None else np.asarray(d, dtype=float)
     point = to_cartesian(ref, s, d0)
@@ -115,11 +119,12 @@ def curve_bulge(
     offset = vehicle.rear_offset
     if offset:
         x, y = x + offset * np.cos(heading), y + offset * np.sin(heading)
-    corners = box_corners(x, y, heading, vehicle.length, vehicle.width)
-    fr = to_frenet(ref, corners.reshape(-1, 2))
-    side = np.array([-1.0, -1.0, 1.0, 1.0])  # right corners reach out to negative d
-    reach = side * (fr.d.reshape(-1, 4) - d0[:, None]) - 0.5 * vehicle.width
-    return CornerReach(s=fr.s.reshape(-1, 4), reach=np.maximum(reach, 0.0))
+    outline = outline_points(x, y, heading, vehicle.length, vehicle.width)
+    count = outline.shape[-2]
+    fr = to_frenet(ref, outline.reshape(-1, 2))
+    side = np.where(np.isin(np.arange(count), RIGHT_SIDE), -1.0, 1.0)  # the right reaches out to negative d
+    reach = side * (fr.d.reshape(-1, count) - d0[:, None]) - 0.5 * vehicle.width
+    return CornerReach(s=fr.s.reshape(-1, count), reach=np.maximum(reach, 0.0))
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from shapely import LineString
 from shapely.geometry.base import BaseGeometry
 
-from planner.collision import box_corners
+from planner.collision import outline_points
 from planner.frenet import to_cartesian, to_frenet
 from planner.kinematics import lateral_acceleration, planned_point, steering_angle
 from planner.problem import DynamicObstacle, Lane, PlanningProblem, Vehicle
@@ -216,13 +216,14 @@ def _lane_excess(
     heading: FloatArray,
     surface: Lane | None,
 ) -> FloatArray:
-    """Per pose and footprint corner (shape (N, 4)), how far [m] the corner is outside the lane
+    """Per pose and point of the footprint's outline (its corners and points along its sides,
+    :func:`planner.collision.outline_points`, shape (N, 10)), how far [m] the point is outside the lane
     (``surface``, default the problem's lane), by TransF-κ; negative inside."""
     vehicle = problem.vehicle
-    corners = box_corners(x, y, heading, vehicle.length, vehicle.width).reshape(-1, 2)
-    fr = to_frenet(ref, corners)
+    outline = outline_points(x, y, heading, vehicle.length, vehicle.width)
+    fr = to_frenet(ref, outline.reshape(-1, 2))
     left, right = (problem.lane if surface is None else surface).widths(ref, fr.s)
-    return np.maximum(fr.d - left, -right - fr.d).reshape(-1, 4)
+    return np.maximum(fr.d - left, -right - fr.d).reshape(outline.shape[:-1])
 
 
 def outside_lane(
@@ -234,8 +235,8 @@ def outside_lane(
     surface: Lane | None = None,
 ) -> NDArray[np.bool_]:
     """Per pose (the footprint's centre ``(x, y)`` [m], yaw ``heading`` [rad]), whether a corner of the
-    footprint is outside the lane (``surface``, default the problem's lane) beyond :data:`_GEOMETRY_TOL`,
-    the first pose included (unlike :func:`leaves_lane`)."""
+    footprint (or a point along a side, :func:`_lane_excess`) is outside the lane (``surface``, default
+    the problem's lane) beyond :data:`_GEOMETRY_TOL`, the first pose included (unlike :func:`leaves_lane`)."""
     return np.asarray(np.any(_lane_excess(ref, problem, x, y, heading, surface) > _GEOMETRY_TOL, axis=1))
 
 
@@ -248,9 +249,10 @@ def leaves_lane(
     surface: Lane | None = None,
 ) -> NDArray[np.bool_]:
     """Per pose (the footprint's centre ``(x, y)`` [m], yaw ``heading`` [rad]), whether a corner of the
-    footprint is outside the lane (``surface``, default the problem's lane: the road when it borrows) (by
-    TransF-κ, beyond :data:`_GEOMETRY_TOL`). The first pose is a measurement: a vehicle already partly
-    outside may not get further out until it has moved one length away."""
+    footprint or a point along a side (:func:`_lane_excess`) is outside the lane (``surface``, default the
+    problem's lane: the road when it borrows) (by TransF-κ, beyond :data:`_GEOMETRY_TOL`). The first pose
+    is a measurement: a vehicle already partly outside may not get further out until it has moved one
+    length away."""
     outside = _lane_excess(ref, problem, x, y, heading, surface)
     near_start = np.hypot(x - x[0], y - y[0]) < problem.vehicle.length
     allowance = np.where(near_start, max(float(outside[0].max()), 0.0), 0.0)[:, None]
@@ -270,11 +272,11 @@ def lane_overshoot(
     judges it: less what the first pose already reaches out, within one vehicle length of it, and 0 where
     within the checks' tolerance; a pose leaves the lane exactly where one of the two is positive."""
     vehicle = problem.vehicle
-    corners = box_corners(x, y, heading, vehicle.length, vehicle.width).reshape(-1, 2)
-    fr = to_frenet(ref, corners)
+    outline = outline_points(x, y, heading, vehicle.length, vehicle.width)
+    fr = to_frenet(ref, outline.reshape(-1, 2))
     left_w, right_w = (problem.lane if surface is None else surface).widths(ref, fr.s)
-    right = np.max((-right_w - fr.d).reshape(-1, 4), axis=1)
-    left = np.max((fr.d - left_w).reshape(-1, 4), axis=1)
+    right = np.max((-right_w - fr.d).reshape(outline.shape[:-1]), axis=1)
+    left = np.max((fr.d - left_w).reshape(outline.shape[:-1]), axis=1)
     near_start = np.hypot(x - x[0], y - y[0]) < vehicle.length
     allowance = np.where(near_start, max(float(right[0]), float(left[0]), 0.0), 0.0)
     right, left = right - allowance, left - allowance

@@ -305,7 +305,8 @@ COLUMNS: dict[str, str] = {
     "plan_errors": "plan calls that raised (the vehicle brakes for that cycle)",
     "sim_collisions": "simulator sub-steps (0.01 s) whose footprint hits an obstacle of the request",
     "min_clearance_m": "smallest distance of the footprint to an obstacle of the request [m]",
-    "lane_departure_m": "farthest a footprint corner got outside the request's lane [m] (≤ 0: inside)",
+    "lane_departure_m": "farthest a footprint corner or side point got outside the request's lane [m] "
+    "(≤ 0: inside)",
     "cycle_p50_ms": "median wall time of a plan call [ms]",
     "cycle_p99_ms": "99th percentile of the plan calls' wall time [ms]",
     "cycle_max_ms": "longest plan call [ms]",

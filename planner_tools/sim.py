@@ -62,7 +62,7 @@ from numpy.typing import NDArray
 from shapely.geometry.base import BaseGeometry
 
 from planner.candidates import CandidateSet
-from planner.collision import box_corners, footprints, obstacle_shape, prediction_at
+from planner.collision import box_corners, footprints, obstacle_shape, outline_points, prediction_at
 from planner.decision import Decision
 from planner.errors import InvalidInputError, PlannerError
 from planner.frenet import to_frenet
@@ -605,8 +605,9 @@ class SimMetrics:
         min_clearance: smallest footprint-to-obstacle distance (None without obstacles).
         backward_steps: cycles whose centre moved and ended with a smaller ``s``.
         fold_steps: cycles with an executed sample where ``κ·d ≥ 1``.
-        max_lane_departure: farthest a footprint corner got outside the lane (≤ 0: inside).
-        max_road_departure: farthest a footprint corner got outside the road (≤ 0: inside; the lane's
+        max_lane_departure: farthest a footprint corner, or a point along a side
+            (:func:`planner.collision.outline_points`), got outside the lane (≤ 0: inside).
+        max_road_departure: farthest a footprint point got outside the road (≤ 0: inside; the lane's
             departure when the problem has no road).
         max_lateral_acceleration: the centre's ``max v_c²/R_c`` (``v²|κ|`` at the centre, the yaw rate
             times the centre's speed); ``max_longitudinal_jerk``, ``max_lateral_jerk``: of
@@ -964,8 +965,9 @@ def _metrics(
     folded = kappa * motion.d >= 1.0
     fold_steps = _per_cycle_any(folded[1:], motion.step[1:], n)
 
-    corners = box_corners(motion.x, motion.y, motion.yaw, vehicle.length, vehicle.width).reshape(-1, 2)
-    cf = to_frenet(ref, corners)
+    # the corners and points along the sides: a side cuts the inside of a curve between its corners
+    outline = outline_points(motion.x, motion.y, motion.yaw, vehicle.length, vehicle.width).reshape(-1, 2)
+    cf = to_frenet(ref, outline)
     left, right = problem.lane.widths(ref, cf.s)
     departure = float(np.max(np.maximum(cf.d - left, -right - cf.d)))
     road_departure = departure

@@ -8,7 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from planner.frenet import to_cartesian
+from planner.collision import box_corners
+from planner.frenet import to_cartesian, to_frenet
 from planner.problem import (
     DynamicObstacle,
     Ego,
@@ -312,3 +313,26 @@ def test_the_lane_overshoot_is_positive_exactly_where_the_footprint_leaves_the_l
     if ref is STRAIGHT:
         reach = 4.0 + 1.0 * np.cos(turn[-1]) + 2.0 * abs(np.sin(turn[-1]))
         assert left[-1] == pytest.approx(reach - 3.5, abs=1e-6)
+
+
+def test_a_side_cutting_the_inside_of_a_bend_between_its_corners_leaves_the_lane() -> None:
+    """A 4.5 × 1.8 m footprint tangent to a left bend of radius 6 m, 0.95 m left of it: its corners lie
+    4.72 m from the centre of curvature, inside the lane's left edge (radius 6 − 1.75 = 4.25 m), but the
+    middle of its left side only 4.15 m from it, 0.10 m over the edge (the side's sagitta). The checks
+    measure the sides, not the corners alone."""
+    radius, half_lane, length, width, d = 6.0, 1.75, 4.5, 1.8, 0.95
+    ref = build_reference(arc(radius, 1.5, step=0.25))
+    assert ref.kappa_at(np.array([0.5 * ref.length]))[0] > 0.0  # a left bend: its inside is on the left
+    # a pose on the reference first (the first pose is a measurement the checks allow for), then the one
+    s = np.array([0.5 * ref.length - 0.5 * length, 0.5 * ref.length])
+    xy = to_cartesian(ref, s, np.array([0.0, d]))
+    heading = ref.heading_at(s)
+    ego = Ego(x=float(xy[0, 0]), y=float(xy[0, 1]), heading=float(heading[0]), speed=0.0)
+    vehicle = Vehicle(length=length, width=width)
+    problem = PlanningProblem(ref.points, Lane(half_lane, half_lane), ego, (), vehicle)
+    corners = box_corners(xy[1:, 0], xy[1:, 1], heading[1:], length, width).reshape(-1, 2)
+    assert to_frenet(ref, corners).d.max() < half_lane - 0.3  # every corner well inside
+    right, left = lane_overshoot(ref, problem, xy[:, 0], xy[:, 1], heading)
+    assert left[1] == pytest.approx(radius - (radius - d - 0.5 * width) - half_lane, abs=2e-3)  # 0.10 m
+    assert right.tolist() == [0.0, 0.0] and left[0] == 0.0
+    assert leaves_lane(ref, problem, xy[:, 0], xy[:, 1], heading).tolist() == [False, True]
