@@ -316,6 +316,8 @@ class _Corridor:
     road_end: bool
     surface: Lane
     boxes: FrenetBoxes
+    #: a car's eased path's bounds (:func:`_eased`), else None
+    eased: LateralBounds | None = None
 
     @property
     def far(self) -> float:
@@ -440,8 +442,26 @@ def _corridor(
     reach = ref.length - vehicle.front_extent - config.stop_gap
     # a lane that runs out (narrower than the vehicle) at the reference's end is its end, not a block
     road_end = bounds.blocked is not None and at[bounds.blocked] >= reach
+    eased = None
+    if vehicle.max_steering_rate is not None and vehicle.wheelbase is not None:
+        # the eased path's bounds (:func:`_eased`): the footprint along the reference's heading, cut where
+        # these are; never narrower than these (where the turned footprint does not fit, they fall back)
+        aligned = lateral_bounds(
+            ref,
+            corridor,
+            at,
+            vehicle,
+            margin=options.lateral_margin,
+            boxes=boxes,
+            left_of=shared.left_of,
+            lane_margin=lane_margin,
+            geometry=shared.geometry,
+        )
+        lower, upper = np.minimum(aligned.lower, bounds.lower), np.maximum(aligned.upper, bounds.upper)
+        aligned = replace(aligned, lower=lower, upper=upper, blocked=bounds.blocked)
+        eased, _ = _qp_bounds(aligned, d_ref, start, reach, vehicle.length)
     bounds, d_ref = _qp_bounds(bounds, d_ref, start, reach, vehicle.length)
-    return _Corridor(bounds, d_ref, bool(road_end), corridor, boxes)
+    return _Corridor(bounds, d_ref, bool(road_end), corridor, boxes, eased)
 
 
 def _attempt(
@@ -571,15 +591,21 @@ def _eased(
     ``smooth``, within the curvature ``allowance`` [1/m] and curvature-rate ``rate`` [1/m²] per knot),
     when it converges and its path keeps the footprint in the lane; else None.
 
-    The bounds are linearised at the candidate's heading, which a path cutting a bend leaves: where
-    the footprint of the eased path leaves the lane at a knot (by :func:`planner.validation.
-    lane_overshoot`), that knot's bound is moved inside the path's own offset by the overshoot and the
-    QP's ``qp_slack`` (the footprint is then that much inside at the knot, which the trajectory sampled
-    between the knots needs: it reaches a millimetre or two further out on the edge) and the QP solves
-    once more. Without that, a bend whose bounds the eased path misses by millimetres left
-    only the path that follows the reference's own change of curvature: in a tight bend one the
-    steering rate lets the car drive at a crawl, the speed profile braking hard for it."""
-    bounds = corridor.bounds
+    Its bounds (``corridor.eased``) place the footprint along the reference's heading, not turned by
+    the candidate's heading error as the other QPs' are: the eased path leaves the candidate's heading
+    anyway, and the candidate's bends towards the inside of a curve the closer the car gets to it, so
+    bounds turned by it closed in on the path cycle by cycle, each plan cutting the bend less and
+    turning in more sharply, the car crawling through a bend it entered at walking pace (DEU_Lohmar-26:
+    rear-ended there). The footprint's exact place is checked instead: where the footprint of the eased
+    path leaves the lane at a knot (by :func:`planner.validation.lane_overshoot`), that knot's bound is
+    moved inside the path's own offset by the overshoot and the QP's ``qp_slack`` (the footprint is then
+    that much inside at the knot, which the trajectory sampled between the knots needs: it reaches a
+    millimetre or two further out on the edge) and the QP solves once more; a path whose footprint,
+    turned by the path's own heading error, meets an obstacle's box is not taken (:func:`_meets_obstacle`).
+    Without the repair, a bend whose bounds the eased path misses by millimetres left only the path that
+    follows the reference's own change of curvature: in a tight bend one the steering rate lets the car
+    drive at a crawl, the speed profile braking hard for it."""
+    bounds = corridor.bounds if corridor.eased is None else corridor.eased
     for repair in (False, True):
         qp = lateral_qp(
             solver,
@@ -600,7 +626,7 @@ def _eased(
         right, left = lane_overshoot(ref, problem, x, y, path.heading, corridor.surface)
         right_out, left_out = right > 0.0, left > 0.0
         if not (right_out.any() or left_out.any()):
-            if repair and _meets_obstacle(ref, corridor, qp, problem, config):
+            if _meets_obstacle(ref, corridor, qp, problem, config):
                 return None
             return qp
         if repair:

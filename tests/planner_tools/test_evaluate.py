@@ -9,6 +9,7 @@ import shutil
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from planner_tools import evaluate as ev
@@ -112,6 +113,25 @@ def test_recorded_vehicles_that_leave_drive_on_and_leave_the_run() -> None:
     assert aarschot.leaves == {}
     original = json.loads((DATA / "BEL_Aarschot-3_1_T-1.json").read_text())["obstacles"]
     assert aarschot.request["obstacles"] == original
+
+
+def test_the_car_drives_lohmars_right_angle_bend_at_a_steady_speed_clear_of_the_car_behind() -> None:
+    """DEU_Lohmar-26_1_T-1 with CommonRoad's car (steering at most 0.4 rad/s): a right-angle bend of
+    radius ~3 m, a recorded car closing from behind. The car entered the bend at ~2.8 m/s; cycle by cycle
+    its eased path's bounds, turned by the candidate's heading, closed in on it, each plan cut the bend
+    less and turned in more sharply, and it crawled through at 0.7 m/s until the car behind ran into it.
+    Bounded along the reference's heading and checked where the footprint is, the path keeps its line
+    and the car its speed through the bend: the goal, no collision."""
+    pytest.importorskip("commonroad")
+    run = ev.run_scene(DATA / "DEU_Lohmar-26_1_T-1.json", ev.Settings(vehicle="car"), keep=True)
+    out = run.outcome
+    assert out.goal and not out.collision, (out.goal, out.collided)
+    assert run.result is not None
+    motion = run.result.motion
+    bend = (motion.s > 30.0) & (motion.s < 36.0)  # the reference's curvature peaks at 0.35 1/m at 33 m
+    entered = float(motion.v[np.argmax(bend)])
+    assert entered > 2.0
+    assert float(motion.v[bend].min()) >= 0.75 * entered  # was a quarter of it
 
 
 # --------------------------------------------------------------------------------------------------
