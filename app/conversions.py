@@ -177,6 +177,30 @@ def demo_goal() -> Goal:
     )
 
 
+def demo_with_follower(request: PlanningRequest) -> PlanningRequest:
+    """``request`` (the demo's, or the demo's with its goal) with a car 15 m behind the ego in its lane,
+    1 m/s faster, straight on for the horizon: a plan of it bounds the profile from below (a follower's
+    speed problem, a QP of its own)."""
+    ego = request.ego
+    speed = ego.speed + 1.0
+    times = np.linspace(0.0, float(request.options.horizon_time), 9)
+    c, s = float(np.cos(ego.heading)), float(np.sin(ego.heading))
+    start = np.array([ego.x - 15.0 * c, ego.y - 15.0 * s])
+    prediction = [
+        {
+            "t": float(t),
+            "x": float(start[0] + speed * t * c),
+            "y": float(start[1] + speed * t * s),
+            "heading": ego.heading,
+        }
+        for t in times
+    ]
+    follower = {"id": "follower", "length": 4.5, "width": 1.8, "prediction": prediction}
+    data = request.model_dump(mode="json", exclude_none=True)
+    data["obstacles"] = [*data.get("obstacles", []), follower]
+    return PlanningRequest.model_validate(data)
+
+
 # -- answers -----------------------------------------------------------------------------------
 
 

@@ -34,6 +34,7 @@ from app.conversions import (
     cartesian_data,
     demo_goal,
     demo_request,
+    demo_with_follower,
     frenet_data,
     plan_data,
     to_problem,
@@ -164,12 +165,14 @@ def run_job(job: Job) -> Outcome:
 
 
 def warm_up() -> None:
-    """Plan the demo once, and once with a goal, so that a process's first plan does not build the speed
-    problem (a goal's has a QP of its own); then everything alive (modules, the built QPs) leaves the
-    cyclic garbage collector's care: a full collection, which otherwise walks all of it (tens of ms,
-    inside whichever plan triggers it), then walks only what the plans leave behind."""
+    """Plan the demo, with and without a goal, with and without a car from behind, so that a process's
+    first plans do not build the speed problem (a goal's and a follower's bounds each have a QP of their
+    own: 25–50 ms to build, inside the first request that needs it); then everything alive (modules, the
+    built QPs) leaves the cyclic garbage collector's care: a full collection, which otherwise walks all of
+    it (tens of ms, inside whichever plan triggers it), then walks only what the plans leave behind."""
     demo = demo_request()
-    for request in (demo, demo.model_copy(update={"goal": demo_goal()})):
+    with_goal = demo.model_copy(update={"goal": demo_goal()})
+    for request in (demo, with_goal, demo_with_follower(demo), demo_with_follower(with_goal)):
         plan_job(Job("plan", request.model_dump_json().encode(), time.monotonic(), 60_000.0))
     gc.collect()
     gc.freeze()

@@ -1,5 +1,5 @@
 """What a plan process does before its first request: the warm-up builds the speed problems a plan with
-and without a goal needs."""
+and without a goal, and with and without a car from behind, needs."""
 
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ import time
 
 import pytest
 
-from app.conversions import demo_goal, demo_request
+from app.conversions import demo_goal, demo_request, demo_with_follower
 from app.jobs import Job, plan_job, warm_up
 from planner.thread_solvers import thread_solvers
 
 
-def test_the_warm_up_builds_the_speed_problems_with_and_without_a_goal(
+def test_the_warm_up_builds_the_speed_problems_with_and_without_a_goal_and_a_follower(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     built: list[int] = []
@@ -24,12 +24,14 @@ def test_the_warm_up_builds_the_speed_problems_with_and_without_a_goal(
     def process() -> None:  # the solvers are kept per thread: a thread of its own is a fresh process here
         warm_up()
         built.append(thread_solvers().speed.build_count)
-        goal = demo_request().model_copy(update={"goal": demo_goal()}).model_dump_json().encode()
-        plan_job(Job("plan", goal, time.monotonic(), 60_000.0))
-        built.append(thread_solvers().speed.build_count)
+        goal = demo_request().model_copy(update={"goal": demo_goal()})
+        for request in (goal, demo_with_follower(goal), demo_with_follower(demo_request())):
+            plan_job(Job("plan", request.model_dump_json().encode(), time.monotonic(), 60_000.0))
+            built.append(thread_solvers().speed.build_count)
 
     thread = threading.Thread(target=process)
     thread.start()
     thread.join()
-    assert built == [2, 2]  # the goal's QP built by the warm-up, not by the first goal request
-    assert frozen == [2]  # frozen after the warm-up built both
+    # the goal's and the follower's QPs built by the warm-up, not by the first requests that need them
+    assert built == [4, 4, 4, 4]
+    assert frozen == [4]  # frozen after the warm-up built them all
