@@ -424,19 +424,24 @@ def _corridor(
     """Bounds at knots ``at`` in ``corridor`` (the lane, or a borrow's corridor; ``lane_margin`` [m] to
     its edges, default the options' margin) for the lateral QP tracking the candidate's offsets
     ``d_ref`` [m], with what the corridors at these knots share (``shared``: :func:`_knots`)."""
-    vehicle, options = problem.vehicle, problem.options
-    bounds = lateral_bounds(
-        ref,
-        corridor,
-        at,
-        vehicle,
-        margin=options.lateral_margin,
-        boxes=boxes,
-        left_of=shared.left_of,
-        heading_error=shared.heading_error,
-        lane_margin=lane_margin,
-        geometry=shared.geometry,
-    )
+    vehicle = problem.vehicle
+
+    def bounded(heading_error: FloatArray | None) -> LateralBounds:
+        """The bounds with the footprint turned by ``heading_error`` [rad] per knot (None: not turned)."""
+        return lateral_bounds(
+            ref,
+            corridor,
+            at,
+            vehicle,
+            margin=problem.options.lateral_margin,
+            boxes=boxes,
+            left_of=shared.left_of,
+            heading_error=heading_error,
+            lane_margin=lane_margin,
+            geometry=shared.geometry,
+        )
+
+    bounds = bounded(shared.heading_error)
     # The planned point never gets beyond this: the speed stage stops the front stop_gap before the
     # reference's end.
     reach = ref.length - vehicle.front_extent - config.stop_gap
@@ -446,17 +451,7 @@ def _corridor(
     if vehicle.max_steering_rate is not None and vehicle.wheelbase is not None:
         # the eased path's bounds (:func:`_eased`): the footprint along the reference's heading, cut where
         # these are; never narrower than these (where the turned footprint does not fit, they fall back)
-        aligned = lateral_bounds(
-            ref,
-            corridor,
-            at,
-            vehicle,
-            margin=options.lateral_margin,
-            boxes=boxes,
-            left_of=shared.left_of,
-            lane_margin=lane_margin,
-            geometry=shared.geometry,
-        )
+        aligned = bounded(None)
         lower, upper = np.minimum(aligned.lower, bounds.lower), np.maximum(aligned.upper, bounds.upper)
         aligned = replace(aligned, lower=lower, upper=upper, blocked=bounds.blocked)
         eased, _ = _qp_bounds(aligned, d_ref, start, reach, vehicle.length)
