@@ -150,7 +150,8 @@ class DecisionConfig:
     slow_share: float = 0.5
     #: ... when it is also at least this much slower [m/s]
     slow_margin: float = 2.0
-    #: the ego is outside its lane (and comes back) when a footprint corner is this far beyond its edge,
+    #: the ego is outside its lane (and comes back) when its footprint (a corner, or a point along a
+    #: side: :func:`planner.collision.outline_points`) is this far beyond its edge,
     #: where the road reaches beyond it [m]
     outside_tolerance: float = 0.3
     #: the ramps into the borrowed road and back are this long at the speed driven there [s] ...

@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 from shapely.geometry.base import BaseGeometry
 
 from planner.bounds import LateralBounds, lateral_bounds, roomier_left
-from planner.collision import FrenetBoxes, box_corners, frenet_boxes
+from planner.collision import FrenetBoxes, frenet_boxes, outline_points
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.ego import EgoFrenet
 from planner.frenet import to_frenet
@@ -346,11 +346,11 @@ def _what_blocks(
 def _outside_lane(
     ref: ReferenceLine, problem: PlanningProblem, road: Road, config: PlannerConfig
 ) -> Side | None:
-    """The side on which the ego's footprint reaches more than ``outside_tolerance`` beyond its lane into
-    a road that goes on beyond it there, or None."""
+    """The side on which the ego's footprint (its outline: :func:`planner.collision.outline_points`) reaches
+    more than ``outside_tolerance`` beyond its lane into a road that goes on beyond it there, or None."""
     ego, v = problem.ego, problem.vehicle
-    corners = box_corners(np.array(ego.x), np.array(ego.y), np.array(ego.heading), v.length, v.width)
-    fr = to_frenet(ref, corners.reshape(-1, 2))
+    outline = outline_points(np.array(ego.x), np.array(ego.y), np.array(ego.heading), v.length, v.width)
+    fr = to_frenet(ref, outline.reshape(-1, 2))
     left, right = problem.lane.widths(ref, fr.s)
     road_left, road_right = road.widths(ref, fr.s)
     tol = config.decision.outside_tolerance

@@ -16,14 +16,16 @@ import pytest
 
 from planner.candidates import generate_candidates
 from planner.collision import box_corners, obstacle_shape, prediction_at
+from planner.config import DEFAULT_CONFIG
 from planner.decision import BlockKind, LaneChoice, ReasonKind
-from planner.frenet import to_frenet
+from planner.frenet import to_cartesian, to_frenet
 from planner.pipeline import plan
-from planner.problem import PlanningProblem, Road, Vehicle
+from planner.problem import Ego, Lane, PlanningProblem, Road, Vehicle
 from planner.reference import build_reference
 from planner.result import PlanResult
 from planner.roads import (
     HALF_LANE,
+    arc,
     box,
     demo_problem,
     driving,
@@ -252,3 +254,25 @@ def test_a_borrow_that_leaves_the_road_is_a_violation() -> None:
     assert ViolationKind.ROAD in kinds and ViolationKind.LANE not in kinds
     kinds = {v.kind for v in trajectory_violations(ref, problem, result.trajectory, [], borrowing=False)}
     assert kinds == {ViolationKind.LANE}
+
+
+def test_an_ego_whose_side_is_over_the_lane_on_the_inside_of_a_bend_is_outside_it() -> None:
+    """The ego (4.5 × 1.8 m) tangent to a left bend of radius 6 m, 1.25 m left of the reference: its corners
+    are 0.21 m inside the lane's left edge (radius 4.25 m), the middle of its left side 0.40 m beyond it,
+    in the road (more than the decision's 0.3 m tolerance). It is outside its lane on the left (and keeps
+    borrowing until back), as the checks judge its outline."""
+    from planner.decision import _outside_lane
+
+    ref = build_reference(arc(6.0, 1.5, step=0.25))
+    s = np.array([0.5 * ref.length])
+    x, y = to_cartesian(ref, s, np.array([1.25]))[0]
+    ego = Ego(x=float(x), y=float(y), heading=float(ref.heading_at(s)[0]), speed=5.0)
+    problem = PlanningProblem(
+        ref.points,
+        Lane(HALF_LANE, HALF_LANE),
+        ego,
+        (),
+        Vehicle(length=4.5, width=1.8),
+        road=Road(4.0, HALF_LANE),
+    )
+    assert _outside_lane(ref, problem, Road(4.0, HALF_LANE), DEFAULT_CONFIG) == "left"
