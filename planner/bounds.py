@@ -69,11 +69,6 @@ def roomier_left(
     return np.asarray(upper[at] - boxes.d_max >= boxes.d_min - lower[at], dtype=bool)
 
 
-#: the footprint's outline points (:func:`planner.collision.outline_points`: corners and points along the
-#: sides) by side
-RIGHT_CORNERS, LEFT_CORNERS = RIGHT_SIDE, LEFT_SIDE
-
-
 @dataclass(frozen=True)
 class CornerReach:
     """The footprint's outline when its planned point is on a knot, aligned with the reference, each of shape
@@ -87,12 +82,12 @@ class CornerReach:
     @property
     def left(self) -> FloatArray:
         """The most any point reaches out on the left, per knot [m]."""
-        return np.asarray(self.reach[:, LEFT_CORNERS].max(axis=1))
+        return np.asarray(self.reach[:, LEFT_SIDE].max(axis=1))
 
     @property
     def right(self) -> FloatArray:
         """The most any point reaches out on the right, per knot [m]."""
-        return np.asarray(self.reach[:, RIGHT_CORNERS].max(axis=1))
+        return np.asarray(self.reach[:, RIGHT_SIDE].max(axis=1))
 
 
 def curve_bulge(
@@ -221,9 +216,9 @@ def lateral_bounds(
     # a reference often starts just behind the vehicle, where the lane's edges may close in.)
     corner_s = np.maximum(corners.s, s[0])
     left_w, right_w = lane.widths(ref, corner_s)
-    for c in RIGHT_CORNERS:
+    for c in RIGHT_SIDE:
         lo = np.maximum(lo, -right_w[:, c] + edge + ext_right + corners.reach[:, c])
-    for c in LEFT_CORNERS:
+    for c in LEFT_SIDE:
         up = np.minimum(up, left_w[:, c] - edge - ext_left - corners.reach[:, c])
     fits = (lo <= up) & ~narrow
     lower, upper = np.where(fits, lo, lower), np.where(fits, up, upper)

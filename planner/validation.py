@@ -208,6 +208,26 @@ def _first(t: FloatArray, where: NDArray[np.bool_]) -> float:
     return float(t[int(np.argmax(where))])
 
 
+def _side_excess(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    x: FloatArray,
+    y: FloatArray,
+    heading: FloatArray,
+    surface: Lane | None,
+) -> tuple[FloatArray, FloatArray]:
+    """Per pose and point of the footprint's outline (its corners and points along its sides,
+    :func:`planner.collision.outline_points`, shape (N, 10)), how far [m] the point is beyond the lane's
+    right edge and beyond its left edge (``surface``, default the problem's lane), by TransF-κ; negative
+    inside."""
+    vehicle = problem.vehicle
+    outline = outline_points(x, y, heading, vehicle.length, vehicle.width)
+    fr = to_frenet(ref, outline.reshape(-1, 2))
+    left, right = (problem.lane if surface is None else surface).widths(ref, fr.s)
+    shape = outline.shape[:-1]
+    return (-right - fr.d).reshape(shape), (fr.d - left).reshape(shape)
+
+
 def _lane_excess(
     ref: ReferenceLine,
     problem: PlanningProblem,
@@ -216,14 +236,10 @@ def _lane_excess(
     heading: FloatArray,
     surface: Lane | None,
 ) -> FloatArray:
-    """Per pose and point of the footprint's outline (its corners and points along its sides,
-    :func:`planner.collision.outline_points`, shape (N, 10)), how far [m] the point is outside the lane
-    (``surface``, default the problem's lane), by TransF-κ; negative inside."""
-    vehicle = problem.vehicle
-    outline = outline_points(x, y, heading, vehicle.length, vehicle.width)
-    fr = to_frenet(ref, outline.reshape(-1, 2))
-    left, right = (problem.lane if surface is None else surface).widths(ref, fr.s)
-    return np.maximum(fr.d - left, -right - fr.d).reshape(outline.shape[:-1])
+    """Per pose and point of the footprint's outline (shape (N, 10)), how far [m] the point is outside the
+    lane (:func:`_side_excess`, the farther side); negative inside."""
+    right, left = _side_excess(ref, problem, x, y, heading, surface)
+    return np.maximum(left, right)
 
 
 def outside_lane(
@@ -271,13 +287,9 @@ def lane_overshoot(
     reaches beyond the lane's right edge and beyond its left edge (by TransF-κ), as :func:`leaves_lane`
     judges it: less what the first pose already reaches out, within one vehicle length of it, and 0 where
     within the checks' tolerance; a pose leaves the lane exactly where one of the two is positive."""
-    vehicle = problem.vehicle
-    outline = outline_points(x, y, heading, vehicle.length, vehicle.width)
-    fr = to_frenet(ref, outline.reshape(-1, 2))
-    left_w, right_w = (problem.lane if surface is None else surface).widths(ref, fr.s)
-    right = np.max((-right_w - fr.d).reshape(outline.shape[:-1]), axis=1)
-    left = np.max((fr.d - left_w).reshape(outline.shape[:-1]), axis=1)
-    near_start = np.hypot(x - x[0], y - y[0]) < vehicle.length
+    right_points, left_points = _side_excess(ref, problem, x, y, heading, surface)
+    right, left = right_points.max(axis=1), left_points.max(axis=1)
+    near_start = np.hypot(x - x[0], y - y[0]) < problem.vehicle.length
     allowance = np.where(near_start, max(float(right[0]), float(left[0]), 0.0), 0.0)
     right, left = right - allowance, left - allowance
     return np.where(right > _GEOMETRY_TOL, right, 0.0), np.where(left > _GEOMETRY_TOL, left, 0.0)
