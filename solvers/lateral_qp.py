@@ -114,11 +114,13 @@ class LateralQPSolver:
     breaks one by more (polishing failed, the ADMM iterate is accurate to about ``eps``) is
     ``solved_inaccurate``, its largest violation ``info.max_violation``.
 
-    Second backend. Where OSQP runs out of iterations, fails, or finds the problem infeasible only
-    inaccurately (not where its time ran out: the budget is spent), the same ``(P, q, A, l, u)`` goes to
-    Clarabel through qpsolvers (:mod:`solvers.conic_qp`), at most ``second_max_iter`` interior-point
-    iterations. Its converged answer is returned (``solved`` when every constraint holds to
-    ``feasibility_tol``). Where it proves the QP infeasible, the elastic problem
+    Second backend. Where OSQP runs out of iterations, fails, returns a solution that breaks a
+    constraint by more than ``feasibility_tol`` (``solved_inaccurate``), or finds the problem infeasible
+    only inaccurately (not where its time ran out: the budget is spent), the same ``(P, q, A, l, u)``
+    goes to Clarabel through qpsolvers (:mod:`solvers.conic_qp`), at most ``second_max_iter``
+    interior-point iterations. Its converged answer is returned (``solved`` when every constraint holds
+    to ``feasibility_tol``; after OSQP's ``solved_inaccurate`` only if it breaks the constraints less).
+    Where it proves the QP infeasible and OSQP had no answer, the elastic problem
     (:mod:`solvers.lateral_qp_elastic`) gives the path breaking the offset and curvature bounds least
     (``relaxed``: usable, not converged). Otherwise OSQP's result is returned, with the second backend's
     verdict beside it. A result from Clarabel carries OSQP's own as ``first`` (its unfinished iterate,
@@ -329,7 +331,13 @@ class LateralQPSolver:
             )
             return LateralQPResult(info=info, d=d, dd=dd, ddd=ddd, x=x)
 
-        hand_over = status in _HAND_OVER or int(info.status_val) == _INACCURATE_INFEASIBLE
+        # a converged answer that breaks a constraint by more than the tolerance (polishing picked a wrong
+        # active set, or did not run) goes too: an interior-point solve is accurate where ADMM is not
+        hand_over = (
+            status in _HAND_OVER
+            or status is SolverStatus.SOLVED_INACCURATE
+            or int(info.status_val) == _INACCURATE_INFEASIBLE
+        )
         if not (self._second_backend and second_backend and hand_over):
             return result(x, status, message)
         second = solve_conic_qp(
@@ -345,13 +353,15 @@ class LateralQPSolver:
         extras["second_status"] = str(second.info.extras["backend_status"])
         message += f"; {second.info.message}"
         first = result(x, status, message)
-        if second.info.converged:
+        if second.info.converged and (
+            not status.converged or second.info.max_violation < first.info.max_violation
+        ):
             if second.info.status is SolverStatus.SOLVED_INACCURATE:
                 message += f" (constraints violated by up to {second.info.max_violation:.1e})"
             extras.update(backend=BACKEND, backend_status=extras["second_status"], returned="solution")
             return replace(result(second.x, second.info.status, message), first=first)
-        if second.info.status is not SolverStatus.INFEASIBLE:
-            return first
+        if status.converged or second.info.status is not SolverStatus.INFEASIBLE:
+            return first  # OSQP's answer, nearly feasible, beats a proof that none is exactly
 
         # no solution: the path that breaks the offset and curvature bounds least
         elastic = solve_conic_qp(
