@@ -7,15 +7,17 @@ any bend ahead allows) or its numbers disagree, braking straight on along the eg
 (:func:`straight_on`: no curvature, so no lateral acceleration and no steering) is tried too. Else the
 least severe is taken (:func:`severity`).
 
-Braking into a vehicle coming from behind is never better than driving on: when a braking trajectory is hit
-from behind (a :attr:`~planner.validation.ViolationKind.HITS_MOVING_OBSTACLE` of one of
-:func:`planner.st_bounds.followers`), three more profiles along the best path are weighed, in this order:
-the planned one (which may have slowed for a leader's headway only), keeping the speed
-(:func:`planner.speed.keep_speed`: slowing only where the path's curvature demands it) and getting away as
-fast as the limits allow (:func:`planner.speed.escape`, up to the speed cap). The first that passes every
-check is taken; else the least severe, on a tie the one a vehicle from behind hits later, and then the
-earlier (so these before braking: a harder stop gives the follower less time). A follower that still hits
-the answer is named with the reason it is not escaped (:func:`planner.follower.unescaped`).
+Braking into moving traffic is never better than driving on: when a braking trajectory is hit by a
+moving obstacle (a :attr:`~planner.validation.ViolationKind.HITS_MOVING_OBSTACLE`: a vehicle from behind,
+one of :func:`planner.st_bounds.followers`, or crossing or oncoming traffic that reaches where the ego
+stands), three more profiles along the best path are weighed, in this order: the planned one (which may
+have slowed for a leader's headway only), keeping the speed (:func:`planner.speed.keep_speed`: slowing
+only where the path's curvature demands it) and getting away as fast as the limits allow
+(:func:`planner.speed.escape`, up to the speed cap). The first that passes every check is taken; else the
+least severe, on a tie the one whose first hit of anything but a vehicle from behind comes later and
+then slower (so braking before driving into a leader), then the one a vehicle from behind hits later,
+and then the earlier (so these before braking: a harder stop gives the follower less time). A follower
+that still hits the answer is named with the reason it is not escaped (:func:`planner.follower.unescaped`).
 
 Severity (:func:`severity`) ranks what a trajectory breaks, never its messages: first numbers that
 disagree (:data:`~planner.validation.CONSISTENCY`: no motion at all), then the vehicle's own limits
@@ -42,7 +44,14 @@ from planner.reference import FloatArray, ReferenceLine
 from planner.speed import Profile, ProfileKind, braking, escape, keep_speed, profile_grid
 from planner.st_bounds import followers, moving_obstacles
 from planner.trajectory import Path, Trajectory
-from planner.validation import CONSISTENCY, HITS, LIMITS, Violation, trajectory_violations
+from planner.validation import (
+    CONSISTENCY,
+    HITS,
+    LIMITS,
+    Violation,
+    ViolationKind,
+    trajectory_violations,
+)
 from solvers.speed_problem import SpeedResult
 
 
@@ -83,11 +92,25 @@ def severity(bad: Collection[Violation], rear: Collection[str]) -> tuple[int, in
     return wrong, limits, len(hits) - behind, behind, len(bad) - len(hits) - limits - wrong
 
 
-def _rank(bad: list[Violation], rear: set[str]) -> tuple[float, ...]:
-    """:func:`severity`, then the later a vehicle from behind first hits, the better (it is braked into
-    less)."""
+def _rank(option: _Option, rear: set[str]) -> tuple[float, ...]:
+    """:func:`severity`, then the later the first hit of anything but a vehicle from behind, the better
+    (more time to react), and the slower at that hit, the better; then the later a vehicle from behind
+    first hits, the better (it is braked into less)."""
+    bad, traj = option.violations, option.trajectory
+    ahead = [v.t or 0.0 for v in bad if v.kind in HITS and not from_behind(v, rear)]
+    t_ahead = min(ahead) if ahead else None
     hit = first_hit_from_behind(bad, rear)
-    return (*severity(bad, rear), -(hit.t or 0.0) if hit is not None else 0.0)
+    return (
+        *severity(bad, rear),
+        -t_ahead if t_ahead is not None else 0.0,
+        float(np.interp(t_ahead, traj.t, traj.v)) if t_ahead is not None else 0.0,
+        -(hit.t or 0.0) if hit is not None else 0.0,
+    )
+
+
+def _moving_hit(bad: list[Violation]) -> Violation | None:
+    """The first of ``bad`` that is a hit of a moving obstacle, if any."""
+    return next((v for v in bad if v.kind is ViolationKind.HITS_MOVING_OBSTACLE), None)
 
 
 def fallback(
@@ -129,7 +152,8 @@ def fallback(
         best = min(tried, key=lambda o: severity(o.violations, rear))
     message = f"{reason}; the braking trajectory still breaks: {best.violations[0]}"
     hit_from_behind = next((h for o in tried if (h := first_hit_from_behind(o.violations, rear))), None)
-    if hit_from_behind is None:
+    moving_hit = hit_from_behind or next((h for o in tried if (h := _moving_hit(o.violations))), None)
+    if moving_hit is None:
         return Fallback(best.trajectory, tuple(best.violations), message, ProfileKind.BRAKING)
 
     others: list[tuple[str, Callable[[], Profile]]] = []
@@ -143,11 +167,12 @@ def fallback(
         weighed.append(weigh(label, make(), path))
         if not weighed[-1].violations:
             break
-    chosen = min([*weighed, *tried], key=lambda o: _rank(o.violations, rear))
+    chosen = min([*weighed, *tried], key=lambda o: _rank(o, rear))
     if chosen.profile.kind is ProfileKind.BRAKING:
         message = f"{reason}; the braking trajectory still breaks: {chosen.violations[0]}"
     else:
-        message = f"{reason}; braking is hit from behind ({hit_from_behind}): {chosen.label} instead"
+        how = "from behind" if hit_from_behind is not None else "by moving traffic"
+        message = f"{reason}; braking is hit {how} ({moving_hit}): {chosen.label} instead"
         if chosen.violations:
             message += f", which still breaks: {chosen.violations[0]}"
     follower = None

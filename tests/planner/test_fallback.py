@@ -11,7 +11,7 @@ import pytest
 from hypothesis import assume, event, given, note, settings
 from hypothesis import strategies as st
 from scenario_roads import Road, arc_piece, follow_prediction, straight_piece
-from traffic import LANE, ROAD, car, violations
+from traffic import LANE, ROAD, T, car, violations
 
 from planner.ego import start_state
 from planner.fallback import fallback, severity
@@ -158,6 +158,48 @@ def test_a_fallback_that_cannot_pass_says_what_its_braking_trajectory_still_brea
     assert [(v.kind, v.obstacle_id) for v in out.violations] == [(KIND.HITS_OBSTACLE, "wall")]
     assert out.message == "a reason; the braking trajectory still breaks: footprint hits obstacle wall"
     assert out.profile is ProfileKind.BRAKING
+
+
+def test_when_braking_stands_in_crossing_traffic_the_fallback_drives_on() -> None:
+    """A car crossing the road where full braking would leave the ego standing (a hit by anything
+    moving, not only from behind): keeping the speed is weighed and taken, as it passes before."""
+    problem = PlanningProblem(ROAD, LANE, Ego(30.0, 0.0, 0.0, 10.0), (), Vehicle())
+    ref = build_reference(ROAD)
+    start = start_state(ref, problem)
+    s = np.linspace(start.s, 120.0, 181)
+    straight_on = polyline_path(ref, s, 0.0 * s)
+    stands = fallback("a reason", straight_on, straight_on, ref, problem, start, [])
+    assert stands.profile is ProfileKind.BRAKING and stands.violations == ()
+    x_stop = float(stands.trajectory.x[-1])
+    # crossing at the stopped ego's front from the right, there at t = 4 s (the ego passed at ~1 s)
+    y = -40.0 + 10.0 * T
+    crossing = DynamicObstacle(
+        "crossing", 4.5, 1.8, np.column_stack((T, 0 * T + x_stop + 2.0, y, 0 * T + np.pi / 2))
+    )
+    problem = PlanningProblem(ROAD, LANE, problem.ego, (crossing,), Vehicle())
+    assert [(v.kind, v.obstacle_id) for v in violations(problem, stands.trajectory)] == [
+        (KIND.HITS_MOVING_OBSTACLE, "crossing")
+    ]
+    out = fallback("a reason", straight_on, straight_on, ref, problem, start, [])
+    assert out.profile is ProfileKind.KEEP_SPEED and out.violations == ()
+    assert "braking is hit by moving traffic" in out.message and "keeping the speed instead" in out.message
+    assert violations(problem, out.trajectory) == []
+    assert out.follower is None
+
+
+def test_braking_stays_when_driving_on_hits_a_leader_sooner() -> None:
+    """A leader braking hard ahead: every profile hits it, braking latest; the fallback brakes."""
+    leader = DynamicObstacle(
+        "leader", 4.5, 1.8, np.column_stack((T, 40.0 + 0 * T, 0 * T, 0 * T))
+    )
+    problem = PlanningProblem(ROAD, LANE, Ego(30.0, 0.0, 0.0, 12.0), (leader,), Vehicle())
+    ref = build_reference(ROAD)
+    start = start_state(ref, problem)
+    s = np.linspace(start.s, 120.0, 181)
+    straight_on = polyline_path(ref, s, 0.0 * s)
+    out = fallback("a reason", straight_on, straight_on, ref, problem, start, [])
+    assert out.profile is ProfileKind.BRAKING
+    assert [(v.kind, v.obstacle_id) for v in out.violations] == [(KIND.HITS_MOVING_OBSTACLE, "leader")]
 
 
 def _curve_ahead(ego_speed: float, follower: DynamicObstacle | None = None) -> tuple[PlanningProblem, Road]:
