@@ -9,6 +9,7 @@ vehicles behind; a fallback that brakes at full deceleration from the start is e
 start state cannot keep) and, apart, the vehicle's limits it breaks without that excuse. Asserts nothing.
 
 ``--vehicle`` as ``bench/commonroad.py``'s (default ``car``, CommonRoad's vehicle type 2).
+``--xml DIR``: the CommonRoad XML files of ``DIR`` instead (``bench/swap_ego.py`` writes some).
 ``--closed-loop`` drives every scene as ``bench/commonroad.py`` does and checks every cycle's answer
 against the vehicle's limits (:func:`tests.regression.checks.limit_problems`, no excuse): how many
 answers of each status break one, and which limits.
@@ -27,12 +28,21 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__)
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from planner_tools.evaluate import VEHICLES, Settings, prepare, run_scene  # noqa: E402 (after the path fix)
+from planner_tools.evaluate import (  # noqa: E402 (after the path fix)
+    VEHICLES,
+    Settings,
+    find_scenes,
+    prepare,
+    run_scene,
+)
 
 REQUESTS = ROOT / "tests" / "data" / "commonroad"
 
 
-def scenes() -> list[Path]:
+def scenes(xml: Path | None = None) -> list[Path]:
+    """The shared requests, or the CommonRoad XML files of ``xml`` (e.g. ``bench/swap_ego.py``'s)."""
+    if xml is not None:
+        return [p for p in find_scenes([xml]) if not p.name.endswith(".json")]
     return sorted(p for p in REQUESTS.glob("*.json") if p.name != "index.json")
 
 
@@ -48,9 +58,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--vehicle", choices=VEHICLES, default="car")
     parser.add_argument("--closed-loop", action="store_true", help="check every cycle of the closed loops")
+    parser.add_argument("--xml", type=Path, help="the CommonRoad XML files in DIR instead of the requests")
     args = parser.parse_args(argv)
     if args.closed_loop:
-        return closed_loop(args.vehicle)
+        return closed_loop(args.vehicle, args.xml)
 
     from fastapi.testclient import TestClient
 
@@ -60,11 +71,9 @@ def main(argv: list[str] | None = None) -> int:
     from app.settings import Settings as AppSettings
     from tests.regression.checks import STATUSES, limit_problems, plan_problems, trajectory_of
 
-    print(
-        "| scene | status | profile | follower | goal | breaks | vehicle limits |\n|" + "---|" * 7
-    )
+    print("| scene | status | profile | follower | goal | breaks | vehicle limits |\n|" + "---|" * 7)
     broken = beyond = 0
-    paths = scenes()
+    paths = scenes(args.xml)
     with TestClient(create_app(AppSettings(log_level="warning", plan_processes=1))) as client:
         for path in paths:
             request = request_of(path, args.vehicle)
@@ -93,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def closed_loop(vehicle: str) -> int:
+def closed_loop(vehicle: str, xml: Path | None = None) -> int:
     """Every cycle's answer of every scene's closed loop (as ``bench/commonroad.py`` drives it) against
     the vehicle's limits."""
     from tests.regression.checks import limit_problems
@@ -101,7 +110,7 @@ def closed_loop(vehicle: str) -> int:
     cycles: Counter[str] = Counter()
     beyond: Counter[str] = Counter()
     kinds: Counter[str] = Counter()
-    for path in scenes():
+    for path in scenes(xml):
         run = run_scene(path, Settings(vehicle=vehicle), keep=True)
         if run.result is None or run.prepared is None:
             print(f"{path.stem}: {run.outcome.error}", file=sys.stderr)
