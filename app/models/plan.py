@@ -107,9 +107,9 @@ class SpeedSolveInfo(ResponseModel):
         description="The speed profile the trajectory follows: `optimised` (the SQP's), `braking` (full "
         "braking within the jerk limit: a fallback, or the SQP's profile went past a stop), "
         "`keep_speed` (the acceleration released, the speed kept, slowing only where the path's "
-        "curvature demands it: a fallback hit from behind when braking) or `escape` (towards the speed "
-        "limit as fast as the vehicle's acceleration allows, within the path's curvature: a fallback "
-        "hit from behind when braking)."
+        "curvature demands it: a fallback whose braking is hit by moving traffic, from behind or "
+        "where it would stand) or `escape` (towards the speed limit as fast as the vehicle's "
+        "acceleration allows, within the path's curvature: the same)."
     )
 
 
