@@ -964,11 +964,15 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
     ego_speed = float(getattr(init, "velocity", 0.0) or 0.0)
 
     found = network.find_lanelet_by_position([ego_xy])[0]
-    start = [i for i in found if _heading_ok(network.find_lanelet_by_id(i), ego_xy, ego_heading)] or list(
-        found
-    )
-    if not start:
+    if not found:
         raise CommonRoadError(f"{path}: the ego at {ego_xy.tolist()} is on no lanelet")
+    start = [i for i in found if _heading_ok(network.find_lanelet_by_id(i), ego_xy, ego_heading)]
+    if not start:
+        # a route along them would run against the ego's heading: the planner refuses such a request
+        raise CommonRoadError(
+            f"{path}: the ego at {ego_xy.tolist()} heading {ego_heading:.2f} rad drives against every "
+            f"lanelet there ({', '.join(map(str, found))}): no route in its direction"
+        )
     goal = _goal_region(network, problem, dt, t0_step)
     core = _route(network, start, goal)
     route, _ = _extend_route(network, core, BEHIND_EGO + 5.0, BEYOND_GOAL if goal.lanelets else 0.0)

@@ -296,6 +296,22 @@ def test_xml_conversion_is_a_valid_request_close_to_the_shared_one(name: str) ->
     assert result.status in ("ok", "stopped")
 
 
+def test_an_ego_driving_against_its_lanelet_is_refused_by_name(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A route along the only lanelets there would run against the ego (the planner refuses such a
+    request): the conversion says so instead of writing it."""
+    pytest.importorskip("commonroad")
+    read = cr.read_scenario
+
+    def turned(path: object, planning_problem_id: int | None = None) -> tuple[object, object]:
+        scenario, problem = read(path, planning_problem_id)  # type: ignore[arg-type]
+        problem.initial_state.orientation += math.pi
+        return scenario, problem
+
+    monkeypatch.setattr(cr, "read_scenario", turned)
+    with pytest.raises(cr.CommonRoadError, match=r"drives against every lanelet there \(\d+.*\): no route"):
+        cr.load(DATA / "C-DEU_B471-1_3_T-1.xml")
+
+
 def test_the_road_reaches_as_far_as_the_surface_goes_without_a_gap() -> None:
     shapely = pytest.importorskip("shapely")
     points = np.column_stack((np.linspace(0.0, 50.0, 11), np.zeros(11)))
