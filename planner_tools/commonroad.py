@@ -46,6 +46,7 @@ Units: metres [m], seconds [s], radians [rad].
 from __future__ import annotations
 
 import contextlib
+import copy
 import gzip
 import io
 import itertools
@@ -1169,6 +1170,101 @@ def write_solution(
         CommonRoadSolutionWriter(solution).write_to_file(
             output_path=str(path.parent), filename=path.name, overwrite=True
         )
+    return path
+
+
+#: obstacle types a recorded vehicle of which may become the ego (:func:`recorded_cars`)
+EGO_TYPES = frozenset({"car", "truck", "bus", "priorityVehicle"})
+
+
+def recorded_cars(scenario: Any, min_steps: int, min_distance: float) -> list[Any]:
+    """The dynamic obstacles of ``scenario`` that could drive as the ego (:func:`recorded_as_ego`): road
+    vehicles (:data:`EGO_TYPES`) recorded for at least ``min_steps`` time steps, at exact positions, whose
+    last position lies at least ``min_distance`` [m] from their first; the longest recorded first."""
+    out = []
+    for ob in scenario.dynamic_obstacles:
+        states = getattr(getattr(ob.prediction, "trajectory", None), "state_list", [])
+        if ob.obstacle_type.value not in EGO_TYPES or len(states) < min_steps:
+            continue
+        first, last = _exact(ob.initial_state.position), _exact(states[-1].position)
+        if first is None or last is None or float(np.hypot(*(last - first))) < min_distance:
+            continue
+        out.append(ob)
+    return sorted(out, key=lambda ob: -len(ob.prediction.trajectory.state_list))
+
+
+def _exact(position: Any) -> FloatArray | None:
+    """A recorded position as ``[x, y]`` [m]; None for an uncertain one (a shape)."""
+    try:
+        xy = np.asarray(position, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    return xy if xy.shape == (2,) else None
+
+
+def recorded_as_ego(
+    scenario: Any, obstacle_id: int, slack: tuple[float, float] = (2.0, 4.0)
+) -> tuple[Any, Any]:
+    """``(scenario, planning problem set)``: a copy of ``scenario`` without its recorded vehicle
+    ``obstacle_id``, which becomes the ego: its first recorded state is the initial state (planning
+    problem id = ``obstacle_id``), the goal a 10 m × 4 m rectangle along its last heading centred where
+    its recording ends, from ``slack[0]`` [s] before to ``slack[1]`` [s] after that end. Scenes no test
+    was tuned on, whose traffic reacted to the recorded vehicle, not to the planner.
+
+    Raises:
+        CommonRoadError: for an id that is no recorded vehicle at exact positions.
+    """
+    _require_commonroad()
+    from commonroad.common.util import Interval
+    from commonroad.geometry.occupancy.rect_occupancy import RectOccupancy
+    from commonroad.planning.goal import GoalRegion
+    from commonroad.planning.planning_problem import PlanningProblem, PlanningProblemSet
+    from commonroad.scenario.state import CustomState, InitialState
+
+    if obstacle_id not in {car.obstacle_id for car in recorded_cars(scenario, 2, 0.0)}:
+        raise CommonRoadError(f"obstacle {obstacle_id} is no recorded vehicle at exact positions")
+    obstacle = scenario.obstacle_by_id(obstacle_id)
+    new = copy.deepcopy(scenario)
+    new.remove_obstacle(new.obstacle_by_id(obstacle_id))
+    dt = float(new.dt)
+    init = obstacle.initial_state
+    last = obstacle.prediction.trajectory.state_list[-1]
+    start = InitialState(
+        time_step=int(init.time_step),
+        position=np.asarray(init.position, dtype=float),
+        orientation=float(init.orientation),
+        velocity=float(getattr(init, "velocity", 0.0) or 0.0),
+        acceleration=0.0,
+        yaw_rate=0.0,
+        slip_angle=0.0,
+    )
+    target = CustomState(
+        position=RectOccupancy(
+            rect_center=shapely.Point(*np.asarray(last.position, dtype=float)),
+            width=4.0,
+            length=10.0,
+            orientation=float(last.orientation),
+        ),
+        time_step=Interval(
+            max(int(init.time_step) + 1, int(last.time_step) - round(slack[0] / dt)),
+            int(last.time_step) + round(slack[1] / dt),
+        ),
+    )
+    problem = PlanningProblem(int(obstacle_id), start, GoalRegion([target]))
+    return new, PlanningProblemSet([problem])
+
+
+def write_scenario(out: str | Path, scenario: Any, problems: Any, source: str = "kappa-planner") -> Path:
+    """Write ``scenario`` and its planning problem set as CommonRoad XML to ``out`` (overwritten)."""
+    _require_commonroad()
+    from commonroad.common.file_writer import CommonRoadFileWriter, OverwriteExistingFile
+    from commonroad.common.util import FileFormat
+
+    path = Path(out)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    writer = CommonRoadFileWriter(scenario, problems, source, "", source, set(), file_format=FileFormat.XML)
+    with _quiet():
+        writer.write_to_file(str(path), OverwriteExistingFile.ALWAYS)
     return path
 
 

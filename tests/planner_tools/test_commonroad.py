@@ -312,6 +312,31 @@ def test_an_ego_driving_against_its_lanelet_is_refused_by_name(monkeypatch: pyte
         cr.load(DATA / "C-DEU_B471-1_3_T-1.xml")
 
 
+def test_a_recorded_car_becomes_the_ego_of_a_new_scene(tmp_path: Path) -> None:
+    """bench/swap_ego.py's scenes: the recorded car leaves the traffic and starts as the ego, its goal
+    where its recording ends, within the slack around that end; the scene converts and plans."""
+    pytest.importorskip("commonroad")
+    scenario, _ = cr.read_scenario(DATA / "ZAM_Tjunction-1_42_T-1.xml.gz")
+    cars = cr.recorded_cars(scenario, 60, 30.0)
+    assert cars and all(len(c.prediction.trajectory.state_list) >= 60 for c in cars)
+    car = cars[0]
+    new, problems = cr.recorded_as_ego(scenario, car.obstacle_id, (2.0, 4.0))
+    assert car.obstacle_id not in {o.obstacle_id for o in new.obstacles}
+    assert scenario.obstacle_by_id(car.obstacle_id) is car  # the source scenario is left as it was
+    conv = cr.load(cr.write_scenario(tmp_path / "swapped.xml", new, problems))
+    req = PlanningRequest.model_validate(conv.request)
+    x0, y0 = np.asarray(car.initial_state.position, dtype=float)
+    # the converter reports the ego's centre (the recorded one), rounded to mm
+    assert (req.ego.x, req.ego.y) == pytest.approx((x0, y0), abs=1e-3)
+    assert req.ego.speed == pytest.approx(car.initial_state.velocity, abs=1e-3)
+    assert str(car.obstacle_id) not in {o["id"] for o in conv.request["obstacles"]}
+    end = (car.prediction.trajectory.state_list[-1].time_step - car.initial_state.time_step) * scenario.dt
+    assert conv.goal["time"] == pytest.approx([end - 2.0, end + 4.0], abs=1e-6)
+    assert plan(problem_from_json(conv.request)).status in ("ok", "stopped", "fallback")
+    with pytest.raises(cr.CommonRoadError, match="no recorded vehicle"):
+        cr.recorded_as_ego(scenario, -1)
+
+
 def test_the_road_reaches_as_far_as_the_surface_goes_without_a_gap() -> None:
     shapely = pytest.importorskip("shapely")
     points = np.column_stack((np.linspace(0.0, 50.0, 11), np.zeros(11)))
