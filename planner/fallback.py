@@ -7,17 +7,18 @@ any bend ahead allows) or its numbers disagree, braking straight on along the eg
 (:func:`straight_on`: no curvature, so no lateral acceleration and no steering) is tried too. Else the
 least severe is taken (:func:`severity`).
 
-Braking into moving traffic is never better than driving on: when a braking trajectory is hit by a
-moving obstacle (a :attr:`~planner.validation.ViolationKind.HITS_MOVING_OBSTACLE`: a vehicle from behind,
-one of :func:`planner.st_bounds.followers`, or crossing or oncoming traffic that reaches where the ego
-stands), three more profiles along the best path are weighed, in this order: the planned one (which may
-have slowed for a leader's headway only), keeping the speed (:func:`planner.speed.keep_speed`: slowing
-only where the path's curvature demands it) and getting away as fast as the limits allow
-(:func:`planner.speed.escape`, up to the speed cap). The first that passes every check is taken; else the
-least severe, on a tie the one whose first hit of anything but a vehicle from behind comes later and
-then slower (so braking before driving into a leader), then the one a vehicle from behind hits later,
-and then the earlier (so these before braking: a harder stop gives the follower less time). A follower
-that still hits the answer is named with the reason it is not escaped (:func:`planner.follower.unescaped`).
+Braking into moving traffic is never better than driving on: when a braking trajectory is hit from behind
+(a :attr:`~planner.validation.ViolationKind.HITS_MOVING_OBSTACLE` of one of
+:func:`planner.st_bounds.followers`), or the least severe one by any other moving obstacle (crossing or
+oncoming traffic that reaches where the ego stands), three more profiles along the best path are
+weighed, in this order: the planned one (which may have slowed for a leader's headway only), keeping the
+speed (:func:`planner.speed.keep_speed`: slowing only where the path's curvature demands it) and getting
+away as fast as the limits allow (:func:`planner.speed.escape`, up to the speed cap). The first that
+passes every check is taken; else the least severe, on a tie the one whose first hit of anything but a
+vehicle from behind comes later and then slower (so braking before driving into a leader), then the one
+a vehicle from behind hits later, and then the earlier (so these before braking: a harder stop gives the
+follower less time). A follower that still hits the answer is named with the reason it is not escaped
+(:func:`planner.follower.unescaped`).
 
 Severity (:func:`severity`) ranks what a trajectory breaks, never its messages: first numbers that
 disagree (:data:`~planner.validation.CONSISTENCY`: no motion at all), then the vehicle's own limits
@@ -152,7 +153,8 @@ def fallback(
         best = min(tried, key=lambda o: severity(o.violations, rear))
     message = f"{reason}; the braking trajectory still breaks: {best.violations[0]}"
     hit_from_behind = next((h for o in tried if (h := first_hit_from_behind(o.violations, rear))), None)
-    moving_hit = hit_from_behind or next((h for o in tried if (h := _moving_hit(o.violations))), None)
+    # crossing or oncoming traffic: only where it hits the best braking option (weighing costs a check each)
+    moving_hit = hit_from_behind or _moving_hit(best.violations)
     if moving_hit is None:
         return Fallback(best.trajectory, tuple(best.violations), message, ProfileKind.BRAKING)
 
