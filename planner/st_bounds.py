@@ -5,9 +5,10 @@ lateral bounds keep clear of it. A moving one bounds the speed profile along the
 arc length ``σ`` [m] of the planned point (the vehicle's centre, a car's rear axle) along it at the
 profile's knot times ``t_k`` [s]:
 
-* the obstacles ahead of the ego at the start: ``σ(t_k) ≤ σ_max(t_k)``, short of where the footprint
-  (``obstacle_margin`` around it) first meets the obstacle's Frenet box as it was a ``headway`` earlier,
-  less ``stop_gap`` (:func:`space_time_bound`);
+* the obstacles ahead of the ego at the start (a car on a side road: where it joins the road,
+  :func:`_behind`): ``σ(t_k) ≤ σ_max(t_k)``, short of where the footprint (``obstacle_margin`` around
+  it) first meets the obstacle's Frenet box as it was a ``headway`` earlier, less ``stop_gap``
+  (:func:`space_time_bound`);
 * the vehicles behind it (:func:`followers`): ``σ(t_k) ≥ σ_min(t_k)``, ahead of where the footprint meets
   the box at any time in ``[t_k, t_k + follower_headway]``, plus ``stop_gap`` (:func:`follower_bound`; a
   soft bound in the speed profile);
@@ -172,18 +173,16 @@ def space_time_bound(
 ) -> FloatArray | None:
     """``σ_max(t_k)`` [m]: how far along the path the vehicle's centre may be at each time so that its
     footprint stays clear of every moving obstacle's box (follow or yield). Obstacles behind the ego
-    at the start are not followed: one coming from behind is the follower's to avoid (braking for it as
-    it overtakes would invite a rear-end collision)."""
+    at the start (:func:`_behind`) are not followed: one coming from behind is the follower's to avoid
+    (braking for it as it overtakes would invite a rear-end collision)."""
     times, at = np.unique(t, return_inverse=True)  # each time once (a headway ago is 0 for the first few)
     near, states, close = along.near(movers, times)
     if near.size == 0:
         return None
-    mapped = close[near]
-    mapped[:, 0] = True  # where each is at the first time: ahead of the ego or not
-    extents = frenet_extents(along.ref, [movers[k] for k in near], [states[k] for k in near], mapped)
+    chosen = [movers[k] for k in near]
+    extents = frenet_extents(along.ref, chosen, [states[k] for k in near], close[near])
     boxes = (extents[0][:, at], extents[1][:, at], extents[2][:, at], extents[3][:, at])  # (K, T) each
-    s_min, s_max = boxes[0], boxes[1]
-    ahead = (0.5 * (s_min[:, :1] + s_max[:, :1]) > start_s) | (s_min[:, :1] > start_s)
+    ahead = ~_behind(along.ref, chosen, start_s)[:, None]
     hit = along.meets(boxes)
     sigma = along.path.sigma
     first = np.where(hit.any(axis=2), np.argmax(hit, axis=2), -1)
@@ -221,6 +220,12 @@ def frenet_extents(
     return s_box.min(axis=2), s_box.max(axis=2), d_box.min(axis=2), d_box.max(axis=2)
 
 
+#: how near the reference line [m] (a mover's centre to its nearest sample) a mover must be for where it
+#: is then to say whether it is ahead of the ego or behind it (:func:`_behind`): about two lanes
+JOIN_REACH = 8.0
+#: the times [s] at which :func:`_behind` looks for where a mover that starts farther out joins the road
+JOIN_TIMES = np.arange(0.0, 8.0 + 1e-9, 0.5)
+
 #: the last reference and ego position asked about, and the verdicts of :func:`_behind` there, by
 #: obstacle (its identity; the obstacle kept beside it): a plan asks for them several times (the
 #: candidates' reach, both space-time bounds, the fallback). Replaced whole for another reference or
@@ -229,8 +234,12 @@ _LAST_BEHIND: tuple[ReferenceLine | None, float, dict[int, tuple[DynamicObstacle
 
 
 def _behind(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float) -> NDArray[np.bool_]:
-    """Which of ``movers`` are behind the ego at the start: the middle of their Frenet box at ``t = 0`` at
-    or behind the ego's ``start_s`` [m] — exactly those :func:`space_time_bound` does not follow."""
+    """Which of ``movers`` are behind the ego at the start: the middle of their Frenet box at or behind the
+    ego's ``start_s`` [m] where they join the road — at ``t = 0``, or for one farther than
+    :data:`JOIN_REACH` from the reference line then, the first of :data:`JOIN_TIMES` it comes that near
+    (a car on a side road, whose projection says nothing of where it will be, turning in behind the ego
+    is a follower; one that never comes near is judged where it is) — exactly those
+    :func:`space_time_bound` does not follow."""
     global _LAST_BEHIND
     if not movers:
         return np.zeros(0, dtype=bool)
@@ -240,10 +249,22 @@ def _behind(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float) -
         _LAST_BEHIND = (ref, start_s, known)
     new = [ob for ob in movers if known.get(id(ob), (None, False))[0] is not ob]
     if new:
-        s_min, s_max, _, _ = frenet_extents(ref, new, [prediction_at(ob, np.zeros(1)) for ob in new])
+        joins = _join_times(ref, new)
+        states = [prediction_at(ob, np.array([t])) for ob, t in zip(new, joins, strict=True)]
+        s_min, s_max, _, _ = frenet_extents(ref, new, states)
         ahead = (0.5 * (s_min[:, 0] + s_max[:, 0]) > start_s) | (s_min[:, 0] > start_s)
         known.update((id(ob), (ob, not bool(front))) for ob, front in zip(new, ahead, strict=True))
     return np.array([known[id(ob)][1] for ob in movers], dtype=bool)
+
+
+def _join_times(ref: ReferenceLine, movers: list[DynamicObstacle]) -> FloatArray:
+    """Per mover, when it joins the road [s]: the first of :data:`JOIN_TIMES` its centre is within
+    :data:`JOIN_REACH` of a sample of the reference line (0 when it is then or never comes that near)."""
+    centres = np.stack([prediction_at(ob, JOIN_TIMES)[:, :2] for ob in movers])  # (K, T, 2)
+    dist, _ = ref.tree.query(centres.reshape(-1, 2), distance_upper_bound=JOIN_REACH)
+    near = np.isfinite(np.asarray(dist)).reshape(centres.shape[:2])
+    first = np.where(near[:, 0] | ~near.any(axis=1), 0, np.argmax(near, axis=1))
+    return np.asarray(JOIN_TIMES[first])
 
 
 def _leaders(

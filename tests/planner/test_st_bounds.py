@@ -75,6 +75,37 @@ def test_only_the_cars_behind_the_ego_at_the_start_are_followers() -> None:
     assert [ob.id for ob in followers(REF, movers, 30.0)] == ["behind", "beside behind"]
 
 
+def _turning_in(name: str, x0: float, x_join: float, speed: float) -> DynamicObstacle:
+    """A car on a side road 30 m to the right of the reference at ``x0`` [m] that drives straight to the
+    road at ``x_join`` [m] in 3 s, then along it at ``speed`` [m/s]."""
+    t = np.array([0.0, 3.0, 8.0])
+    x = np.array([x0, x_join, x_join + 5.0 * speed])
+    heading = np.arctan2(30.0, x_join - x0)
+    return DynamicObstacle(name, 4.5, 1.8, np.column_stack((t, x, [-30.0, 0.0, 0.0], [heading, 0.0, 0.0])))
+
+
+def test_a_car_turning_in_is_behind_or_ahead_where_it_joins_the_road_not_where_it_starts() -> None:
+    """Where a car on a side road projects onto the reference says nothing of where it will drive: it is
+    judged where it first comes within JOIN_REACH of the reference (seen on a recorded junction: a car
+    whose first projection lay 70 m ahead turned in 35 m behind the ego and was followed as a leader, so
+    nothing kept the ego ahead of it)."""
+    behind = _turning_in("turns in behind", x0=45.0, x_join=15.0, speed=12.0)  # first projects ahead
+    ahead = _turning_in("turns in ahead", x0=15.0, x_join=45.0, speed=8.0)  # first projects behind
+    assert [ob.id for ob in followers(REF, [behind, ahead], 30.0)] == ["turns in behind"]
+    # one that stays on its side road is judged where it is
+    parallel = DynamicObstacle(
+        "side road", 4.5, 1.8, np.column_stack((T, 10.0 + 9.0 * T, -30.0 + 0 * T, 0 * T))
+    )
+    assert [ob.id for ob in followers(REF, [parallel], 30.0)] == ["side road"]
+    assert [ob.id for ob in followers(REF, [parallel], 5.0)] == []
+    # the leader's bound holds the ego behind where it turns in; none is put on the follower
+    bounds = space_time_bounds(REF, _path(), _problem(ahead), KNOTS, 30.0)
+    assert bounds.lower is None and bounds.upper is not None
+    assert float(bounds.upper[-1]) < 45.0 + 5.0 * 8.0
+    bounds = space_time_bounds(REF, _path(), _problem(behind), KNOTS, 30.0)
+    assert bounds.upper is None and bounds.lower is not None
+
+
 def test_a_leader_ahead_bounds_how_far_the_ego_may_be_a_headway_later() -> None:
     """σ_max(t) stops the footprint (obstacle_margin around it) short of where the leader's box was a
     headway earlier, less stop_gap, to within a knot of the path."""
