@@ -322,6 +322,27 @@ def follower_bound(
     return np.asarray(bound)
 
 
+def _crosses_over(along: Along, pose: FloatArray, nearest: NDArray[np.intp], half_width: float) -> bool:
+    """Whether an obstacle at ``pose`` (its centre and heading at successive times, shape (T, 3)), with
+    each centre's nearest knot ``nearest``, is clear of the footprint on one side of the path and later
+    clear of it on the other: its centre's signed distance from the knot, across the path's heading,
+    beyond the footprint's half width on that side plus the obstacle's ``half_width`` [m] (crossing
+    traffic at any angle; a car merging into the lane stays on its side)."""
+    if pose.shape[0] < 2:
+        return False
+    heading = along.path.heading[nearest]
+    dx = pose[:, 0] - along.path.x[nearest]
+    dy = pose[:, 1] - along.path.y[nearest]
+    across = np.cos(heading) * dy - np.sin(heading) * dx  # left of the path: positive
+    left = across > float(along.extent.left[0]) + half_width
+    right = -across > float(along.extent.right[0]) + half_width
+    if not (left.any() and right.any()):
+        return False
+    first_left, first_right = int(np.argmax(left)), int(np.argmax(right))
+    # on one side first, and on the other after it
+    return bool(right[first_left:].any() if first_left < first_right else left[first_right:].any())
+
+
 @dataclass(frozen=True)
 class Crossing:
     """A moving obstacle ahead of the ego that is off the path at the start and crosses it later (at
@@ -350,8 +371,9 @@ def crossings(
     [s] (evenly spaced, at least two) for an ego at ``start_s`` [m]: those :func:`space_time_bound`
     follows (ahead at the start, not in ``passing``) whose box does not meet the footprint anywhere along
     the path at the start but does later, first at ``crossing_angle`` or more to the path's heading
-    there (crossing or oncoming traffic, not one merging into the lane). Whether passing first is
-    possible is the speed stage's to decide (:func:`planner.speed.speed_stage`)."""
+    there, or at any angle if it goes from clear of the footprint on one side of the path to clear of it
+    on the other (:func:`_crosses_over`) — crossing or oncoming traffic, not one merging into the lane.
+    Whether passing first is possible is the speed stage's to decide (:func:`planner.speed.speed_stage`)."""
     movers = moving_obstacles(problem)
     if not movers:
         return []
@@ -365,20 +387,22 @@ def crossings(
     times = t[0] + (t[1] - t[0]) * np.arange(t.size + window)  # the knots and the headway beyond them
     near, states, close = along.near(leaders, times)
     cos_limit = float(np.cos(speed.crossing_angle))
-    # Only those that come within reach of the footprint at an angle to the path somewhere are mapped (in
-    # dense traffic along the road, or beside it the other way, mapping the others would be most of the
-    # cost): their heading against the nearest knot's where their centre is within both half-diagonals
-    # and a knot spacing of it (one never that close is yielded to, as any obstacle ahead).
+    # Only those that come within reach of the footprint at an angle to the path somewhere, or cross over
+    # it, are mapped (in dense traffic along the road, or beside it the other way, mapping the others would
+    # be most of the cost): their heading against the nearest knot's where their centre is within both
+    # half-diagonals and a knot spacing of it (one never that close is yielded to, as any obstacle ahead).
     ext = along.extent
     own = float(np.hypot(max(ext.front[0], ext.back[0]), max(ext.left[0], ext.right[0])))
-    across = []
+    across, over = [], set()
     for k in near:
         pose = states[k][close[k]]
         dist, nearest = along.tree.query(pose[:, :2])
         reach = own + 0.5 * float(np.hypot(leaders[k].length, leaders[k].width)) + along.knot_spacing
         angled = np.cos(pose[:, 2] - along.path.heading[nearest]) <= cos_limit
-        if np.any(angled & (dist <= reach)):
+        crosses = _crosses_over(along, pose, np.asarray(nearest, dtype=np.intp), 0.5 * leaders[k].width)
+        if crosses or np.any(angled & (dist <= reach)):
             across.append(k)
+            over.update([int(k)] if crosses else [])
     if not across:
         return []
     near = np.asarray(across, dtype=np.intp)
@@ -395,7 +419,7 @@ def crossings(
         first = int(np.argmax(meets[k]))
         knot = int(np.argmax(hit[k, first]))
         heading = float(states[near[k]][first, 2])
-        if float(np.cos(heading - along.path.heading[knot])) > cos_limit:
+        if float(np.cos(heading - along.path.heading[knot])) > cos_limit and int(near[k]) not in over:
             continue  # it runs along the path there: one merging in front is followed, not raced
         run = np.arange(meets.shape[1]) >= first
         run &= ~(np.cumsum(run & ~meets[k]) > 0)  # its first run on the path only

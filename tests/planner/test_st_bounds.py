@@ -345,6 +345,25 @@ def test_a_car_crossing_the_path_later_is_a_crossing_with_the_room_to_pass_in_fr
     )
 
 
+def test_a_car_crossing_over_at_a_shallow_angle_is_a_crossing_one_merging_at_it_is_not() -> None:
+    """At 35° to the path (below crossing_angle) a car that goes from one side of the path to the other
+    is crossing traffic, whose passing in front the speed stage may weigh (seen on a recorded scene: a car
+    cutting diagonally across the road 57 m ahead in 6.5 s was followed as if it merged, and the ego
+    braked for it); one that comes in at the same angle and stays in the lane merges."""
+    angle = np.radians(35.0)
+    t = T
+    x = 100.0 + 12.0 * np.cos(angle) * (t - 4.0)
+    over = DynamicObstacle(
+        "over", 4.5, 1.8, np.column_stack((t, x, 12.0 * np.sin(angle) * (t - 4.0), angle + 0 * t))
+    )
+    y_in = np.minimum(12.0 * np.sin(angle) * (t - 4.0), 0.0)  # up to the lane's centre, then along it
+    heading_in = np.where(y_in < 0.0, angle, 0.0)
+    merging = DynamicObstacle("merging", 4.5, 1.8, np.column_stack((t, x, y_in, heading_in)))
+    assert np.cos(angle) > np.cos(DEFAULT_CONFIG.speed.crossing_angle)  # shallower than a crossing
+    assert [c.id for c in crossings(REF, _path(), _problem(over), KNOTS, 30.0)] == ["over"]
+    assert crossings(REF, _path(), _problem(merging), KNOTS, 30.0) == []
+
+
 def test_leaders_in_the_lane_cars_merging_along_it_and_cars_behind_are_no_crossings() -> None:
     leader = car("leader", 60.0, 8.0)  # on the path from the start
     merging = car("merging", 70.0, 8.0, y=np.linspace(4.5, 0.0, T.size))  # into the lane, along it
