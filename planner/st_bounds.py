@@ -249,22 +249,21 @@ def _behind(ref: ReferenceLine, movers: list[DynamicObstacle], start_s: float) -
         _LAST_BEHIND = (ref, start_s, known)
     new = [ob for ob in movers if known.get(id(ob), (None, False))[0] is not ob]
     if new:
-        joins = _join_times(ref, new)
-        states = [prediction_at(ob, np.array([t])) for ob, t in zip(new, joins, strict=True)]
-        s_min, s_max, _, _ = frenet_extents(ref, new, states)
+        s_min, s_max, _, _ = frenet_extents(ref, new, _joining_poses(ref, new))
         ahead = (0.5 * (s_min[:, 0] + s_max[:, 0]) > start_s) | (s_min[:, 0] > start_s)
         known.update((id(ob), (ob, not bool(front))) for ob, front in zip(new, ahead, strict=True))
     return np.array([known[id(ob)][1] for ob in movers], dtype=bool)
 
 
-def _join_times(ref: ReferenceLine, movers: list[DynamicObstacle]) -> FloatArray:
-    """Per mover, when it joins the road [s]: the first of :data:`JOIN_TIMES` its centre is within
-    :data:`JOIN_REACH` of a sample of the reference line (0 when it is then or never comes that near)."""
-    centres = np.stack([prediction_at(ob, JOIN_TIMES)[:, :2] for ob in movers])  # (K, T, 2)
-    dist, _ = ref.tree.query(centres.reshape(-1, 2), distance_upper_bound=JOIN_REACH)
-    near = np.isfinite(np.asarray(dist)).reshape(centres.shape[:2])
+def _joining_poses(ref: ReferenceLine, movers: list[DynamicObstacle]) -> list[FloatArray]:
+    """Per mover, its pose (shape (1, 3)) where it joins the road: at the first of :data:`JOIN_TIMES` its
+    centre is within :data:`JOIN_REACH` of a sample of the reference line (at t = 0 when it is then or
+    never comes that near)."""
+    poses = np.stack([prediction_at(ob, JOIN_TIMES) for ob in movers])  # (K, T, 3)
+    dist, _ = ref.tree.query(poses[..., :2].reshape(-1, 2), distance_upper_bound=JOIN_REACH)
+    near = np.isfinite(np.asarray(dist)).reshape(poses.shape[:2])
     first = np.where(near[:, 0] | ~near.any(axis=1), 0, np.argmax(near, axis=1))
-    return np.asarray(JOIN_TIMES[first])
+    return [pose[k : k + 1] for pose, k in zip(poses, first, strict=True)]
 
 
 def _leaders(
@@ -393,7 +392,8 @@ def crossings(
     # half-diagonals and a knot spacing of it (one never that close is yielded to, as any obstacle ahead).
     ext = along.extent
     own = float(np.hypot(max(ext.front[0], ext.back[0]), max(ext.left[0], ext.right[0])))
-    across, over = [], set()
+    across: list[int] = []
+    over: set[int] = set()
     for k in near:
         pose = states[k][close[k]]
         dist, nearest = along.tree.query(pose[:, :2])
@@ -402,7 +402,8 @@ def crossings(
         crosses = _crosses_over(along, pose, np.asarray(nearest, dtype=np.intp), 0.5 * leaders[k].width)
         if crosses or np.any(angled & (dist <= reach)):
             across.append(k)
-            over.update([int(k)] if crosses else [])
+        if crosses:
+            over.add(int(k))
     if not across:
         return []
     near = np.asarray(across, dtype=np.intp)
