@@ -11,7 +11,14 @@ written in the service's request contract (:class:`app.models.planning.PlanningR
   lanelet (at most :data:`MAX_AHEAD` ahead of the ego).
 * **reference line** — the lanelets' centre lines joined (a lane change blends linearly from one
   centre line to the other over the lanelet where it happens), resampled every :data:`SPACING`,
-  smoothed by a Gaussian of :data:`SMOOTHING_SIGMA` and cut to ``[s_ego − BEHIND_EGO, …]``.
+  smoothed by a Gaussian of :data:`SMOOTHING_SIGMA` and cut to ``[s_ego − BEHIND_EGO, …]``. Where the
+  route ends at the map's edge and recorded traffic drives off it there (:func:`_road_goes_on`), the
+  line goes on straight for :data:`MAP_EDGE_EXTENSION` with the last point's lane and road widths
+  (``info["map_edge_extension_m"]``): the map is a cut-out of a road that goes on, as its traffic does
+  (:func:`continued_predictions`); a reference that ended there would be a stop, and the planner would
+  brake for the edge of the map in front of the traffic behind. A route that ends where no traffic
+  leaves (a loading bay), or whose straight continuation would run into another part of the map, ends
+  as it does.
 * **lane widths** — per reference point, the signed distance to the left edge of the leftmost and to
   the right edge of the rightmost same-direction lanelet beside the route's lanelet there
   (:func:`boundary_widths`; the edges are extended as rays, so end points get real widths).
@@ -81,6 +88,15 @@ BEHIND_EGO = 10.0
 BEYOND_GOAL = 30.0
 #: the route ends at most this far ahead of the ego [m]
 MAX_AHEAD = 500.0
+#: a route that ends at the map's edge where recorded traffic drives off it goes on straight this far
+#: [m] (:func:`_road_goes_on`): 31 m/s over the 8 s horizon
+MAP_EDGE_EXTENSION = 250.0
+#: a vehicle whose recording ends this near the route's end [m], heading along it (within
+#: :data:`LEAVING_HEADING` [rad]), drove off the map there
+LEAVING_REACH, LEAVING_HEADING = 20.0, 0.45
+#: the straight continuation (as wide as :data:`EDGE_CLEARANCE` [m] either side) meets no lanelet off the
+#: route beyond its first :data:`EDGE_START` [m]
+EDGE_CLEARANCE, EDGE_START = 1.5, 5.0
 #: most lanelets a survival route (no goal position) follows, as commonroad-route-planner
 SURVIVAL_LANELETS = 20
 #: cost of a lane change in the route search [m]
@@ -148,6 +164,55 @@ def resample(points: ArrayLike, spacing: float = SPACING) -> tuple[FloatArray, F
     n = max(1, int(np.ceil(s[-1] / spacing - 1e-9)))
     t = np.linspace(0.0, s[-1], n + 1)
     return np.column_stack((np.interp(t, s, p[:, 0]), np.interp(t, s, p[:, 1]))), t
+
+
+def _road_goes_on(scenario: Any, route: list[int], points: FloatArray) -> bool:
+    """Whether the road goes on straight past the route's end (``points``: the reference's, (n, 2)): the
+    route's last lanelet has no successor (the map ends there), the straight continuation meets no other
+    lanelet (it leaves the map, it does not run into another part of it), and a recorded vehicle drove
+    off the map there (its recording ends before the latest one's, near the end and heading along it)."""
+    network = scenario.lanelet_network
+    if network.find_lanelet_by_id(route[-1]).successor:
+        return False
+    end = points[-1]
+    step = points[-1] - points[-2]
+    direction = step / np.hypot(*step)
+    far = end + np.outer(np.linspace(EDGE_START, MAP_EDGE_EXTENSION, 2), direction)
+    corridor = shapely.LineString(far).buffer(EDGE_CLEARANCE)
+    on_route = set(route)
+    if any(
+        la.polygon.shapely_object.intersects(corridor)
+        for la in network.lanelets
+        if la.lanelet_id not in on_route
+    ):
+        return False
+    lasts = [
+        ob.prediction.trajectory.state_list[-1]
+        for ob in scenario.dynamic_obstacles
+        if getattr(ob.prediction, "trajectory", None) is not None and ob.prediction.trajectory.state_list
+    ]
+    recording_end = max((st.time_step for st in lasts), default=0)
+    heading = math.atan2(direction[1], direction[0])
+    return any(
+        st.time_step < recording_end
+        and float(np.hypot(*(_xy(st.position) - end))) <= LEAVING_REACH
+        and abs(_wrap(_angle(st.orientation) - heading)) <= LEAVING_HEADING
+        for st in lasts
+    )
+
+
+def continued_straight(
+    points: FloatArray, widths: tuple[FloatArray, ...], length: float, spacing: float = SPACING
+) -> tuple[FloatArray, tuple[FloatArray, ...]]:
+    """A polyline (n, 2) continued straight along its last segment's direction by ``length`` [m], a point
+    every ``spacing`` [m], and the per-point ``widths`` (each (n,)) continued with their last values."""
+    p = np.asarray(points, dtype=float)
+    step = p[-1] - p[-2]
+    direction = step / np.hypot(*step)
+    n = max(1, int(np.ceil(length / spacing - 1e-9)))
+    more = p[-1] + np.linspace(length / n, length, n)[:, None] * direction
+    kept = tuple(np.concatenate((w, np.full(n, w[-1]))) for w in widths)
+    return np.vstack((p, more)), kept
 
 
 def smooth(points: ArrayLike, sigma: float = SMOOTHING_SIGMA, spacing: float = SPACING) -> FloatArray:
@@ -989,6 +1054,12 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
     pts, owner = pts[keep], owner[keep]
     left, right = _widths(network, pts, owner, owners)
     road_left, road_right = surface_widths(pts, left, right, drivable_surface(network))
+    extension = 0.0
+    if bool(keep[-1]) and _road_goes_on(scenario, route, pts):
+        extension = MAP_EDGE_EXTENSION
+        pts, (left, right, road_left, road_right) = continued_straight(
+            pts, (left, right, road_left, road_right), extension, SPACING
+        )
 
     ref = build_reference(pts)
     ego_s = float(to_frenet(ref, ego_xy[None, :]).s[0])
@@ -1031,6 +1102,7 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
         "planning_problem_id": int(problem.planning_problem_id),
         "route_lanelet_ids": [int(i) for i in route],
         "length_m": _r(ref.length, 2),
+        "map_edge_extension_m": extension,
         "kappa_max": _r(float(np.max(np.abs(ref.kappa))), 5),
         "s_ego": _r(ego_s, 2),
         "static": n_static,

@@ -65,7 +65,7 @@ from planner_tools.commonroad import (
 )
 from planner_tools.extras import COMMONROAD
 from planner_tools.io import problem_from_json
-from planner_tools.sim import Goal, SimResult, simulate
+from planner_tools.sim import GOAL_MARGIN_LENGTHS, Goal, SimResult, simulate
 
 #: vehicles a scene can be driven with (see the module docstring)
 VEHICLES = ("car", "point", "request")
@@ -178,13 +178,20 @@ def survival_goal_s(conv: Conversion, duration: float) -> float:
     distance it can reach in the time allowed; at most the reference's end less a vehicle length."""
     problem = problem_from_json(conv.request)
     ref = build_reference(problem.reference_line)
-    end = ref.length - problem.vehicle.length
+    end = _map_end(conv, ref.length) - problem.vehicle.length
     s_min = conv.goal.get("s_min")
     if s_min is not None:
         return float(min(s_min, end))
     s_ego = float(to_frenet(ref, [[problem.ego.x, problem.ego.y]]).s[0])
     speed = problem.options.target_speed or problem.vehicle.max_speed
     return float(min(end, s_ego + speed * duration * SURVIVAL_SHARE))
+
+
+def _map_end(conv: Conversion, length: float) -> float:
+    """Where the map ends on the conversion's reference of ``length`` [m]: its end less the straight
+    continuation past the map's edge (:data:`planner_tools.commonroad.MAP_EDGE_EXTENSION`), which the
+    planner plans on but a run does not drive to as its goal."""
+    return length - float(conv.info.get("map_edge_extension_m", 0.0))
 
 
 def with_vehicle(conv: Conversion, vehicle: str) -> Conversion:
@@ -263,6 +270,11 @@ def prepare(
             window = judge.goal_window()
             if window is not None:
                 duration = min(duration, _cycles_to(window[1], settings.replan_period))
+        elif conv.info.get("map_edge_extension_m"):
+            # no goal state: the simulator's default, the reference's end, but at the map's edge
+            length = build_reference(np.asarray(request["reference_line"], dtype=float)).length
+            margin = GOAL_MARGIN_LENGTHS * float(request["vehicle"]["length"])
+            goal = Goal(s_min=_map_end(conv, length) - margin)
     horizon = float((request.get("options") or {}).get("horizon_time", _DEFAULT_HORIZON))
     obstacles, leaves = continued_predictions(request.get("obstacles", []), horizon)
     request["obstacles"] = obstacles

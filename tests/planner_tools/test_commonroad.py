@@ -18,6 +18,7 @@ from planner.pipeline import plan
 from planner.reference import build_reference
 from planner_tools import commonroad as cr
 from planner_tools.cli import main as cli_main
+from planner_tools.evaluate import Settings, prepare
 from planner_tools.io import problem_from_json
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "commonroad"
@@ -335,6 +336,72 @@ def test_a_recorded_car_becomes_the_ego_of_a_new_scene(tmp_path: Path) -> None:
     assert plan(problem_from_json(conv.request)).status in ("ok", "stopped", "fallback")
     with pytest.raises(cr.CommonRoadError, match="no recorded vehicle"):
         cr.recorded_as_ego(scenario, -1)
+
+
+def test_a_line_continued_straight_keeps_its_direction_spacing_and_end_widths() -> None:
+    line = np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 1.0], [3.0, 2.0]])
+    widths = (np.array([1.0, 2.0, 3.0, 4.0]), np.array([0.5, 0.5, 0.5, 1.5]))
+    out, (left, right) = cr.continued_straight(line, widths, 10.0, 1.0)
+    assert out.shape == (14, 2) and np.array_equal(out[:4], line)
+    steps = np.diff(out[3:], axis=0)
+    assert np.allclose(np.hypot(*steps.T), 1.0)
+    assert np.allclose(steps / np.hypot(*steps.T)[:, None], [math.sqrt(0.5), math.sqrt(0.5)])
+    assert np.array_equal(left, [1.0, 2.0, 3.0] + [4.0] * 11) and np.array_equal(right[3:], [1.5] * 11)
+
+
+def test_a_route_to_the_maps_edge_goes_on_straight_one_inside_the_map_does_not() -> None:
+    """US101's route ends where its map does, and recorded cars drive off it there: the reference goes on
+    MAP_EDGE_EXTENSION straight past the last lanelet's end, with the end's widths; Lohmar-26's route
+    ends inside the map: no extension."""
+    pytest.importorskip("commonroad")
+    conv = cr.load(DATA / "USA_US101-6_1_T-1.xml.gz")
+    scenario, _ = cr.read_scenario(DATA / "USA_US101-6_1_T-1.xml.gz")
+    network = scenario.lanelet_network
+    assert not network.find_lanelet_by_id(conv.info["route_lanelet_ids"][-1]).successor
+    assert conv.info["map_edge_extension_m"] == cr.MAP_EDGE_EXTENSION
+    req = PlanningRequest.model_validate(conv.request)
+    points = np.asarray(conv.request["reference_line"], dtype=float)
+    extended = round(cr.MAP_EDGE_EXTENSION / cr.SPACING)
+    beyond = points[-extended:]
+    assert not any(network.find_lanelet_by_position(list(beyond[5:])))  # off the map
+    heading = np.arctan2(*np.diff(points[-extended - 1 :], axis=0).T[::-1])
+    assert np.ptp(heading) < 5e-3  # straight (the points are rounded to mm)
+    for widths in (req.lane.left_width, req.lane.right_width, req.road.left_width, req.road.right_width):
+        assert isinstance(widths, list) and len(set(widths[-extended - 1 :])) == 1
+    inside = cr.load(DATA / "DEU_Lohmar-26_1_T-1.xml.gz")
+    assert inside.info["map_edge_extension_m"] == 0.0
+
+
+@pytest.mark.parametrize(
+    ("name", "why"),
+    [
+        ("ZAM_Loading_Bay-1_1_T", "no traffic drives off the map there"),
+        ("DEU_Lohmar-55_1_T-1", "its continuation meets other lanelets"),
+    ],
+)
+def test_a_route_to_the_maps_edge_ends_there_where_the_road_need_not_go_on(name: str, why: str) -> None:
+    """The loading bay's route ends at the map's edge, but no recorded vehicle leaves there (a dead end,
+    as far as the recording says); Lohmar-55's straight continuation would run into other lanelets."""
+    pytest.importorskip("commonroad")
+    scenario, _ = cr.read_scenario(DATA / f"{name}.xml.gz")
+    conv = cr.load(DATA / f"{name}.xml.gz")
+    assert not scenario.lanelet_network.find_lanelet_by_id(conv.info["route_lanelet_ids"][-1]).successor
+    assert conv.info["map_edge_extension_m"] == 0.0, why
+
+
+def test_a_recorded_car_driving_off_the_map_is_not_braked_for_the_maps_edge(tmp_path: Path) -> None:
+    """A swapped-ego scene (bench/swap_ego.py) whose recorded car drives at 18 m/s to the map's edge, a
+    faster car behind it: its goal lies 14 m before the edge. Planned as if the road ended there, the
+    first plan braked for the edge into the car behind (a fallback); the road goes on: it drives on."""
+    pytest.importorskip("commonroad")
+    scenario, _ = cr.read_scenario(DATA / "USA_US101-6_1_T-1.xml.gz")
+    new, problems = cr.recorded_as_ego(scenario, 376, (2.0, 4.0))
+    path = cr.write_scenario(tmp_path / "swapped.xml", new, problems)
+    assert cr.load(path).info["map_edge_extension_m"] > 0.0
+    # as `kappa-planner commonroad` plans it (the traffic driving on past the edge, the goal, the limit)
+    result = plan(prepare(path, Settings(vehicle="car")).problem)
+    assert result.status == "ok", result.message
+    assert min(result.trajectory.a) > -0.5  # no braking
 
 
 def test_the_road_reaches_as_far_as_the_surface_goes_without_a_gap() -> None:
