@@ -94,6 +94,8 @@ MAP_EDGE_EXTENSION = 250.0
 #: a vehicle whose recording ends this near the route's end [m], heading along it (within
 #: :data:`LEAVING_HEADING` [rad]), drove off the map there
 LEAVING_REACH, LEAVING_HEADING = 20.0, 0.45
+#: … at least this fast [m/s] at its last state (a car parked there is not leaving)
+LEAVING_SPEED = 1.0
 #: the straight continuation (as wide as :data:`EDGE_CLEARANCE` [m] either side) meets no lanelet off the
 #: route beyond its first :data:`EDGE_START` [m]
 EDGE_CLEARANCE, EDGE_START = 1.5, 5.0
@@ -170,7 +172,8 @@ def _road_goes_on(scenario: Any, route: list[int], points: FloatArray) -> bool:
     """Whether the road goes on straight past the route's end (``points``: the reference's, (n, 2)): the
     route's last lanelet has no successor (the map ends there), the straight continuation meets no other
     lanelet (it leaves the map, it does not run into another part of it), and a recorded vehicle drove
-    off the map there (its recording ends before the latest one's, near the end and heading along it)."""
+    off the map there (its recording ends before the latest one's, near the end, heading along it, and
+    it was moving)."""
     network = scenario.lanelet_network
     if network.find_lanelet_by_id(route[-1]).successor:
         return False
@@ -195,6 +198,7 @@ def _road_goes_on(scenario: Any, route: list[int], points: FloatArray) -> bool:
     heading = math.atan2(direction[1], direction[0])
     return any(
         st.time_step < recording_end
+        and float(getattr(st, "velocity", 0.0) or 0.0) >= LEAVING_SPEED
         and float(np.hypot(*(_xy(st.position) - end))) <= LEAVING_REACH
         and abs(_wrap(_angle(st.orientation) - heading)) <= LEAVING_HEADING
         for st in lasts
