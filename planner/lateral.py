@@ -207,6 +207,7 @@ def lateral_qp(
     rate_allowance: FloatArray | None = None,
     smooth: bool = False,
     second_backend: bool = True,
+    relax: bool = True,
 ) -> LateralQPResult:
     """Piecewise-jerk QP on ``d(s)``; ``d″`` bounds linearised at ``d_ref`` keep ``|κ_path| ≤ allowance``,
     the jerk ``|d‴| ≤ jerk`` and, when given, ``|dκ_path/dσ| ≤ rate_allowance`` (per knot).
@@ -221,7 +222,8 @@ def lateral_qp(
     wheel too fast. With ``smooth`` (and a rate allowance) the jerk term costs the path's own curvature
     rate rather than the offset's (:func:`reference_jerk`): the path eases into the reference's bends
     (a car's steering cannot jump), cutting them within the bounds. ``second_backend``: what OSQP does
-    not converge on goes to the solver's second backend (:meth:`LateralQPSolver.solve`).
+    not converge on goes to the solver's second backend; ``relax``: an infeasible QP gets the elastic
+    problem's least-violating path (:meth:`LateralQPSolver.solve`).
     """
     s = bounds.s
     lower = bounds.lower + config.qp_slack
@@ -257,6 +259,7 @@ def lateral_qp(
         time_limit_s=time_limit_s,
         warm_start=False,
         second_backend=second_backend,
+        relax=relax,
     )
 
 
@@ -613,6 +616,7 @@ def _eased(
             time_left(),
             rate,
             smooth=True,
+            relax=False,  # only a converged answer is taken: no least-violating path for a proof
         )
         if not qp.info.converged:
             return None

@@ -221,6 +221,7 @@ class LateralQPSolver:
         max_iter: int = 4000,
         warm_start: bool = True,
         second_backend: bool = True,
+        relax: bool = True,
     ) -> LateralQPResult:
         """Solve ``problem``; non-convergence is reported in ``result.info.status``, never raised.
 
@@ -237,6 +238,10 @@ class LateralQPSolver:
             second_backend: hand what OSQP does not converge on to the second backend, when the solver
                 has one (False: OSQP's answer as it is — for an optional solve not worth the second
                 backend's time).
+            relax: where the second backend proves the QP infeasible and OSQP had no answer, solve the
+                elastic problem for the least-violating path (``relaxed``). False: return OSQP's result
+                with the proof beside it — for a caller that takes converged answers only, which the
+                elastic path never is.
 
         Raises:
             ValueError: ``problem`` is not a :class:`LateralQPProblem`, or a limit is not positive.
@@ -360,7 +365,7 @@ class LateralQPSolver:
                 message += f" (constraints violated by up to {second.info.max_violation:.1e})"
             extras.update(backend=BACKEND, backend_status=extras["second_status"], returned="solution")
             return replace(result(second.x, second.info.status, message), first=first)
-        if status.converged or second.info.status is not SolverStatus.INFEASIBLE:
+        if status.converged or second.info.status is not SolverStatus.INFEASIBLE or not relax:
             return first  # OSQP's answer, nearly feasible, beats a proof that none is exactly
 
         # no solution: the path that breaks the offset and curvature bounds least

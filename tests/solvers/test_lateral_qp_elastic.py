@@ -76,6 +76,23 @@ def test_the_solver_hands_an_unfinished_qp_to_the_elastic_problem() -> None:
     np.testing.assert_allclose(result.x, x, atol=1e-9)
 
 
+def test_without_relaxation_an_unfinished_infeasible_qp_comes_back_with_the_proof_only() -> None:
+    """``relax=False`` (a caller that takes converged answers only): OSQP's unfinished result, Clarabel's
+    proof of infeasibility beside it, no elastic path."""
+    problem = _corridor(width=0.3, d0=2.0)
+    result = LateralQPSolver().solve(problem, max_iter=3, relax=False)
+    assert result.info.status is SolverStatus.MAX_ITERATIONS and not result.info.converged
+    extras = result.info.extras
+    assert (extras["backend"], extras["second_status"], extras["returned"]) == (
+        "osqp",
+        "PrimalInfeasible",
+        "integrated_iterate",
+    )
+    relaxed = LateralQPSolver().solve(problem, max_iter=3)
+    assert relaxed.info.status is SolverStatus.RELAXED
+    np.testing.assert_array_equal(relaxed.first.x if relaxed.first is not None else None, result.x)
+
+
 def test_the_elastic_matrices_are_the_ones_built_afresh() -> None:
     """The elastic problem's matrices, built once per key, are those built afresh, with each problem's own
     bounds."""
