@@ -91,11 +91,9 @@ MAX_AHEAD = 500.0
 #: a route that ends at the map's edge where recorded traffic drives off it goes on straight this far
 #: [m] (:func:`_road_goes_on`): 31 m/s over the 8 s horizon
 MAP_EDGE_EXTENSION = 250.0
-#: a vehicle whose recording ends this near the route's end [m], heading along it (within
-#: :data:`LEAVING_HEADING` [rad]), drove off the map there
+#: a vehicle that leaves the recorded area (:func:`continued_predictions`) this near the route's end
+#: [m], heading along it (within :data:`LEAVING_HEADING` [rad]), drove off the map there
 LEAVING_REACH, LEAVING_HEADING = 20.0, 0.45
-#: … at least this fast [m/s] at its last state (a car parked there is not leaving)
-LEAVING_SPEED = 1.0
 #: the straight continuation (as wide as :data:`EDGE_CLEARANCE` [m] either side) meets no lanelet off the
 #: route beyond its first :data:`EDGE_START` [m]
 EDGE_CLEARANCE, EDGE_START = 1.5, 5.0
@@ -168,40 +166,39 @@ def resample(points: ArrayLike, spacing: float = SPACING) -> tuple[FloatArray, F
     return np.column_stack((np.interp(t, s, p[:, 0]), np.interp(t, s, p[:, 1]))), t
 
 
-def _road_goes_on(scenario: Any, route: list[int], points: FloatArray) -> bool:
+def _end_direction(points: FloatArray) -> FloatArray:
+    """The unit direction of a polyline's (n, 2) last segment."""
+    step = points[-1] - points[-2]
+    return np.asarray(step / np.hypot(*step))
+
+
+def _road_goes_on(
+    network: Any, route: list[int], points: FloatArray, obstacles: Sequence[dict[str, Any]]
+) -> bool:
     """Whether the road goes on straight past the route's end (``points``: the reference's, (n, 2)): the
-    route's last lanelet has no successor (the map ends there), the straight continuation meets no other
-    lanelet (it leaves the map, it does not run into another part of it), and a recorded vehicle drove
-    off the map there (its recording ends before the latest one's, near the end, heading along it, and
-    it was moving)."""
-    network = scenario.lanelet_network
+    route's last lanelet has no successor (the map ends there), a vehicle of the request's ``obstacles``
+    left the recorded area there (one :func:`continued_predictions` drives on past its recording, whose
+    last recorded state lies near the end, heading along it), and the straight continuation meets no
+    other lanelet (it leaves the map, it does not run into another part of it)."""
     if network.find_lanelet_by_id(route[-1]).successor:
         return False
-    end = points[-1]
-    step = points[-1] - points[-2]
-    direction = step / np.hypot(*step)
+    end, direction = points[-1], _end_direction(points)
+    heading = math.atan2(direction[1], direction[0])
+    _, leaves = continued_predictions(obstacles, HORIZON_TIME)
+    lasts = [ob["prediction"][-1] for ob in obstacles if str(ob["id"]) in leaves]
+    if not any(
+        math.hypot(float(st["x"]) - end[0], float(st["y"]) - end[1]) <= LEAVING_REACH
+        and abs(_wrap(float(st["heading"]) - heading)) <= LEAVING_HEADING
+        for st in lasts
+    ):
+        return False
     far = end + np.outer(np.linspace(EDGE_START, MAP_EDGE_EXTENSION, 2), direction)
     corridor = shapely.LineString(far).buffer(EDGE_CLEARANCE)
     on_route = set(route)
-    if any(
+    return not any(
         la.polygon.shapely_object.intersects(corridor)
         for la in network.lanelets
         if la.lanelet_id not in on_route
-    ):
-        return False
-    lasts = [
-        ob.prediction.trajectory.state_list[-1]
-        for ob in scenario.dynamic_obstacles
-        if getattr(ob.prediction, "trajectory", None) is not None and ob.prediction.trajectory.state_list
-    ]
-    recording_end = max((st.time_step for st in lasts), default=0)
-    heading = math.atan2(direction[1], direction[0])
-    return any(
-        st.time_step < recording_end
-        and float(getattr(st, "velocity", 0.0) or 0.0) >= LEAVING_SPEED
-        and float(np.hypot(*(_xy(st.position) - end))) <= LEAVING_REACH
-        and abs(_wrap(_angle(st.orientation) - heading)) <= LEAVING_HEADING
-        for st in lasts
     )
 
 
@@ -211,8 +208,7 @@ def continued_straight(
     """A polyline (n, 2) continued straight along its last segment's direction by ``length`` [m], a point
     every ``spacing`` [m], and the per-point ``widths`` (each (n,)) continued with their last values."""
     p = np.asarray(points, dtype=float)
-    step = p[-1] - p[-2]
-    direction = step / np.hypot(*step)
+    direction = _end_direction(p)
     n = max(1, int(np.ceil(length / spacing - 1e-9)))
     more = p[-1] + np.linspace(length / n, length, n)[:, None] * direction
     kept = tuple(np.concatenate((w, np.full(n, w[-1]))) for w in widths)
@@ -1058,8 +1054,9 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
     pts, owner = pts[keep], owner[keep]
     left, right = _widths(network, pts, owner, owners)
     road_left, road_right = surface_widths(pts, left, right, drivable_surface(network))
+    obstacles, n_static, n_dynamic = _obstacles(scenario, t0_step)
     extension = 0.0
-    if bool(keep[-1]) and _road_goes_on(scenario, route, pts):
+    if bool(keep[-1]) and _road_goes_on(network, route, pts, obstacles):
         extension = MAP_EDGE_EXTENSION
         pts, (left, right, road_left, road_right) = continued_straight(
             pts, (left, right, road_left, road_right), extension, SPACING
@@ -1076,7 +1073,6 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
         hull = goal.shape if goal.shape.geom_type == "Polygon" else goal.shape.convex_hull
         region = _points_json(np.asarray(hull.exterior.coords)[:-1])
 
-    obstacles, n_static, n_dynamic = _obstacles(scenario, t0_step)
     accel = getattr(init, "acceleration", 0.0)
     vehicle = {**VEHICLE, **vehicle_type_car()}
     request = {

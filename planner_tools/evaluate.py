@@ -272,9 +272,8 @@ def prepare(
                 duration = min(duration, _cycles_to(window[1], settings.replan_period))
         elif conv.info.get("map_edge_extension_m"):
             # no goal state: the simulator's default, the reference's end, but at the map's edge
-            length = build_reference(np.asarray(request["reference_line"], dtype=float)).length
             margin = GOAL_MARGIN_LENGTHS * float(request["vehicle"]["length"])
-            goal = Goal(s_min=_map_end(conv, length) - margin)
+            goal = Goal(s_min=_map_end(conv, float(conv.info["length_m"])) - margin)
     horizon = float((request.get("options") or {}).get("horizon_time", _DEFAULT_HORIZON))
     obstacles, leaves = continued_predictions(request.get("obstacles", []), horizon)
     request["obstacles"] = obstacles
