@@ -30,7 +30,7 @@ from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
 from planner.ego import EgoFrenet
 from planner.kinematics import body_centre, curve_speed, lateral_curvature
 from planner.lane import lane_bounds
-from planner.problem import Lane, PlanningProblem, speed_cap
+from planner.problem import Lane, PlanningProblem, Vehicle, speed_cap
 from planner.reference import FloatArray, ReferenceLine
 from planner.trajectory import Path, frenet_path
 from planner.validation import lane_overshoot, leaves_lane, outside_lane
@@ -776,8 +776,11 @@ def lateral_stage(
                 attempt = retry
     bounds, qp, road_end = attempt.corridor.bounds, attempt.qp, attempt.corridor.road_end
     # An unfinished iterate comes integrated from the initial state, a relaxed path breaks some bounds:
-    # the checks decide, but where it leaves the lane and a block lies ahead, holding the offset is safer.
-    held = bounds.blocked is not None and not (qp.info.converged or attempt.in_lane)
+    # the checks decide, but where it leaves the lane or turns more sharply than the vehicle can (a
+    # relaxed curvature bound) and a block lies ahead, holding the offset is safer.
+    held = bounds.blocked is not None and not (
+        qp.info.converged or (attempt.in_lane and _turnable(paths.path(bounds.s, qp), problem.vehicle))
+    )
     if qp.info.usable and not held:
         path = paths.path(bounds.s, qp)
         if bounds.blocked is None and not attempt.in_lane:
@@ -791,6 +794,11 @@ def lateral_stage(
     if bounds.blocked is None:
         return LateralPlan(None, qp.info, bounds, None, road_end)
     return hold_path(ref, problem, start, boxes, bounds, bounds.blocked, road_end, qp.info)
+
+
+def _turnable(path: Path, vehicle: Vehicle) -> bool:
+    """Whether the vehicle can turn along ``path``: its curvature within the vehicle's limit [1/m]."""
+    return bool(np.max(np.abs(path.curvature), initial=0.0) <= vehicle.curvature_limit)
 
 
 def hold_path(
