@@ -191,8 +191,9 @@ def recording(recorder: Recorder) -> Iterator[Recorder]:
         counts.lateral_solves += 1
         counts.osqp_iterations += int(out.info.iterations)
         counts.lateral_unconverged += not out.info.converged
-        counts.second_backend += bool(extras.get("second_status", ""))
-        counts.second_solved += extras.get("backend", "osqp") != "osqp"
+        handed = bool(extras.get("second_status", ""))  # (not an elastic path after OSQP's own proof)
+        counts.second_backend += handed
+        counts.second_solved += handed and extras.get("backend", "osqp") != "osqp"
         return out
 
     def counted_speed(self: SpeedSolver, *args: Any, **kwargs: Any) -> Any:

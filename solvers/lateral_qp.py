@@ -120,12 +120,13 @@ class LateralQPSolver:
     goes to Clarabel through qpsolvers (:mod:`solvers.conic_qp`), at most ``second_max_iter``
     interior-point iterations. Its converged answer is returned (``solved`` when every constraint holds
     to ``feasibility_tol``; after OSQP's ``solved_inaccurate`` only if it breaks the constraints less).
-    Where it proves the QP infeasible and OSQP had no answer, the elastic problem
-    (:mod:`solvers.lateral_qp_elastic`) gives the path breaking the offset and curvature bounds least
-    (``relaxed``: usable, not converged). Otherwise OSQP's result is returned, with the second backend's
-    verdict beside it. A result from Clarabel carries OSQP's own as ``first`` (its unfinished iterate,
-    for a caller whose checks prefer it). Every solve stops on iteration counts: the same problem gets
-    the same answer.
+    Where it proves the QP infeasible and OSQP had no answer, or OSQP's own certificate proves it (then
+    without a second opinion), the elastic problem (:mod:`solvers.lateral_qp_elastic`) gives the path
+    breaking the offset and curvature bounds least (``relaxed``: usable, not converged): an infeasible QP
+    gets the same path whether or not OSQP found out within its iterations. Otherwise OSQP's result is
+    returned, with the second backend's verdict beside it. A result from Clarabel carries OSQP's own as
+    ``first`` (its unfinished iterate, for a caller whose checks prefer it). Every solve stops on
+    iteration counts: the same problem gets the same answer.
 
     A result's ``info.extras`` holds ``backend`` (``"osqp"`` or ``"clarabel"``: which one's answer this
     is), ``backend_status`` (that backend's status text), ``osqp_status``, ``second_status`` (the second
@@ -238,10 +239,10 @@ class LateralQPSolver:
             second_backend: hand what OSQP does not converge on to the second backend, when the solver
                 has one (False: OSQP's answer as it is — for an optional solve not worth the second
                 backend's time).
-            relax: where the second backend proves the QP infeasible and OSQP had no answer, solve the
-                elastic problem for the least-violating path (``relaxed``). False: return OSQP's result
-                with the proof beside it — for a caller that takes converged answers only, which the
-                elastic path never is.
+            relax: where the QP is proven infeasible (by OSQP's certificate, or by the second backend
+                where OSQP had no answer), solve the elastic problem for the least-violating path
+                (``relaxed``). False: return OSQP's result with the proof (its own, or beside it) — for
+                a caller that takes converged answers only, which the elastic path never is.
 
         Raises:
             ValueError: ``problem`` is not a :class:`LateralQPProblem`, or a limit is not positive.
@@ -336,6 +337,24 @@ class LateralQPSolver:
             )
             return LateralQPResult(info=info, d=d, dd=dd, ddd=ddd, x=x)
 
+        def relaxed(first: LateralQPResult) -> LateralQPResult:
+            """After a proof that the QP has no solution: the path that breaks its offset and curvature
+            bounds least (the elastic problem's), ``first`` beside it; ``first`` where that fails."""
+            elastic = solve_conic_qp(
+                *elastic_qp(problem),
+                max_iter=self._second_max_iter,
+                time_limit_s=None if time_limit_s is None else max(limit - _since(start), 1e-3),
+                feasibility_tol=self._feasibility_tol,
+            )
+            if not elastic.info.converged:
+                return first
+            x_z, slack = split(problem, elastic.x)
+            worst = float(np.max(slack, initial=0.0))
+            said = f"{first.info.message}; the bounds relaxed by up to {worst:.2e}"
+            elastic_status = str(elastic.info.extras["backend_status"])
+            extras.update(backend=BACKEND, backend_status=elastic_status, returned="relaxed")
+            return replace(result(x_z, SolverStatus.RELAXED, said), first=first)
+
         # a converged answer that breaks a constraint by more than the tolerance (polishing picked a wrong
         # active set, or did not run) goes too: an interior-point solve is accurate where ADMM is not
         hand_over = (
@@ -343,7 +362,12 @@ class LateralQPSolver:
             or status is SolverStatus.SOLVED_INACCURATE
             or int(info.status_val) == _INACCURATE_INFEASIBLE
         )
-        if not (self._second_backend and second_backend and hand_over):
+        if not (self._second_backend and second_backend):
+            return result(x, status, message)
+        if status is SolverStatus.INFEASIBLE and not hand_over and relax:
+            # OSQP's certificate is the proof (no second opinion on it): straight to the elastic problem
+            return relaxed(result(x, status, message))
+        if not hand_over:
             return result(x, status, message)
         second = solve_conic_qp(
             workspace.P,
@@ -367,18 +391,4 @@ class LateralQPSolver:
             return replace(result(second.x, second.info.status, message), first=first)
         if status.converged or second.info.status is not SolverStatus.INFEASIBLE or not relax:
             return first  # OSQP's answer, nearly feasible, beats a proof that none is exactly
-
-        # no solution: the path that breaks the offset and curvature bounds least
-        elastic = solve_conic_qp(
-            *elastic_qp(problem),
-            max_iter=self._second_max_iter,
-            time_limit_s=None if time_limit_s is None else max(limit - _since(start), 1e-3),
-            feasibility_tol=self._feasibility_tol,
-        )
-        if not elastic.info.converged:
-            return first
-        x_z, slack = split(problem, elastic.x)
-        message += f"; the bounds relaxed by up to {float(np.max(slack, initial=0.0)):.2e}"
-        elastic_status = str(elastic.info.extras["backend_status"])
-        extras.update(backend=BACKEND, backend_status=elastic_status, returned="relaxed")
-        return replace(result(x_z, SolverStatus.RELAXED, message), first=first)
+        return relaxed(first)

@@ -276,9 +276,11 @@ def _unreachable(n: int = 60) -> LateralQPProblem:
 
 
 def test_unreachable_corridor_is_infeasible_not_an_exception() -> None:
+    """Without relaxation (``relax=False``) OSQP's proof comes back as ``infeasible`` with the reference
+    clipped to the bounds."""
     solver = LateralQPSolver()
     problem = _unreachable()
-    result = solver.solve(problem)
+    result = solver.solve(problem, relax=False)
     assert result.info.status is SolverStatus.INFEASIBLE
     assert not result.info.usable and result.info.objective is None
     assert result.info.extras["returned"] == "clipped_reference"
@@ -289,10 +291,10 @@ def test_unreachable_corridor_is_infeasible_not_an_exception() -> None:
     assert result.d[0] == 3.0
     np.testing.assert_allclose(result.d[1:], 0.0)
     # the same workspace recovers on a feasible problem afterwards
-    relaxed = replace(problem, d_upper=np.full(problem.n, 4.0))
-    again = solver.solve(relaxed)
+    wider = replace(problem, d_upper=np.full(problem.n, 4.0))
+    again = solver.solve(wider)
     assert again.info.status is SolverStatus.SOLVED
-    _assert_feasible(relaxed, again)
+    _assert_feasible(wider, again)
     assert solver.setup_count == 1
 
 
@@ -396,8 +398,29 @@ def test_an_infeasible_problem_osqp_did_not_finish_gets_the_path_breaking_its_bo
     assert result.first is not None and result.first.info.status is SolverStatus.MAX_ITERATIONS
 
 
+def test_an_infeasible_problem_gets_the_same_path_whoever_proves_it() -> None:
+    """OSQP's own certificate of infeasibility goes straight to the elastic problem (no second opinion on
+    the QP): the same ``relaxed`` path as where OSQP ran out of iterations and Clarabel proved it, so the
+    answer does not depend on how far OSQP got; OSQP's result beside it."""
+    problem = _unreachable()
+    proved = LateralQPSolver().solve(problem)
+    unfinished = LateralQPSolver().solve(problem, max_iter=5)
+    assert proved.info.extras["osqp_status"] == "primal infeasible"
+    assert unfinished.info.extras["osqp_status"] == "maximum iterations reached"
+    for result in (proved, unfinished):
+        assert result.info.status is SolverStatus.RELAXED and result.info.extras["returned"] == "relaxed"
+        _assert_reported(problem, result)
+    np.testing.assert_allclose(proved.x, unfinished.x, atol=1e-9)
+    assert proved.info.extras["second_status"] == ""  # Clarabel solved the elastic problem only
+    assert proved.first is not None and proved.first.info.status is SolverStatus.INFEASIBLE
+    assert proved.first.info.extras["returned"] == "clipped_reference"
+    # an optional solve (no second backend) keeps OSQP's verdict
+    alone = LateralQPSolver().solve(problem, second_backend=False)
+    assert alone.info.status is SolverStatus.INFEASIBLE and alone.first is None
+
+
 def test_no_second_backend_when_osqp_proved_infeasibility_or_ran_out_of_time() -> None:
-    result = LateralQPSolver().solve(_unreachable())
+    result = LateralQPSolver().solve(_unreachable(), relax=False)
     assert result.info.status is SolverStatus.INFEASIBLE and result.info.extras["second_status"] == ""
     out_of_time = LateralQPSolver().solve(_active_cases()["all"][0], time_limit_s=1e-9)
     assert out_of_time.info.status is SolverStatus.TIME_LIMIT
