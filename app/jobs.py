@@ -165,14 +165,19 @@ def run_job(job: Job) -> Outcome:
 
 
 def warm_up() -> None:
-    """Plan the demo, with and without a goal, with and without a car from behind, so that a process's
+    """Build what the first plans would (:func:`plan_demos`); then everything alive (modules, the built
+    QPs) leaves the cyclic garbage collector's care: a full collection, which otherwise walks all of it
+    (tens of ms, inside whichever plan triggers it), then walks only what the plans leave behind."""
+    plan_demos()
+    gc.collect()
+    gc.freeze()
+
+
+def plan_demos() -> None:
+    """Plan the demo, with and without a goal, with and without a car from behind, so that this thread's
     first plans do not build the speed problem (a goal's and a follower's bounds each have a QP of their
-    own: 25–50 ms to build, inside the first request that needs it); then everything alive (modules, the
-    built QPs) leaves the cyclic garbage collector's care: a full collection, which otherwise walks all of
-    it (tens of ms, inside whichever plan triggers it), then walks only what the plans leave behind."""
+    own: 25–50 ms to build, inside the first request that needs it)."""
     demo = demo_request()
     with_goal = demo.model_copy(update={"goal": demo_goal()})
     for request in (demo, with_goal, demo_with_follower(demo), demo_with_follower(with_goal)):
         plan_job(Job("plan", request.model_dump_json().encode(), time.monotonic(), 60_000.0))
-    gc.collect()
-    gc.freeze()

@@ -3,10 +3,12 @@ process and prints the distribution of the per-cycle plan wall times, the worst 
 in them (asserts nothing).
 
 The loops are :mod:`bench.commonroad`'s (its loading, goals and vehicles: ``run_one``), a replan every
-0.1 s, after one plan to warm up (the first plan of a process builds the speed problem; a plan process
-of the service does that at its start). When a scene's loop starts, what is alive leaves the cyclic
-garbage collector's care (``gc.freeze()``), as a plan process's heap does after its warm-up: its full
-collections would otherwise walk the loop's own objects inside a plan (``--no-freeze``: they do).
+0.1 s, after the warm-up of a plan process of the service (:func:`app.jobs.plan_demos`: the first plans
+of a process build the speed problems, with and without a goal's and a follower's bounds, 25–50 ms
+each; a checkout without it plans the first scene's first request once instead). When a scene's loop
+starts, what is alive leaves the cyclic garbage collector's care (``gc.freeze()``), as a plan process's
+heap does after its warm-up: its full collections would otherwise walk the loop's own objects inside a
+plan (``--no-freeze``: they do).
 Every ``plan`` call the loop makes is recorded — its wall time in this process, its answer's status
 and ``diagnostics`` (stage times, the lateral QP's and the speed SQP's infos), the obstacles it was
 given — and so is every solver call inside it
@@ -180,6 +182,17 @@ class Recorder:
         self.cycle += 1
 
 
+def _warm_up(otherwise: Any) -> None:
+    """What a plan process builds at its start (:func:`app.jobs.plan_demos`), without its freeze of the
+    heap (the recorder's to decide); on a checkout without it, ``otherwise()``."""
+    try:
+        from app.jobs import plan_demos
+    except ImportError:
+        otherwise()
+    else:
+        plan_demos()
+
+
 @contextmanager
 def recording(recorder: Recorder) -> Iterator[Recorder]:
     """Route the loop's ``plan`` and every solver call through ``recorder`` while the block runs."""
@@ -227,8 +240,8 @@ def run(
     paths = cr.scene_paths(only=names)
     recorder = Recorder(keep_problems=keep_problems, freeze=freeze)
     scenes: dict[str, Any] = {}
-    if paths:  # warm up as a plan process does at start: the first plan builds the speed problem
-        plan(cr.prepare(paths[0], cr.Settings(vehicle=vehicle, duration=duration)).problem)
+    if paths:  # warm up as a plan process does at start: the first plans build the speed problems
+        _warm_up(lambda: plan(cr.prepare(paths[0], cr.Settings(vehicle=vehicle, duration=duration)).problem))
     with recording(recorder):
         for path in paths:
             recorder.scene, recorder.cycle = path.stem, 0
