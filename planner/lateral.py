@@ -16,6 +16,7 @@ offset and the speed profile stops before the block (:func:`hold_path`).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from functools import cached_property
@@ -483,6 +484,8 @@ def _attempt(
     first = _attempt_at(solver, ref, problem, start, corridor, time_left, config, allowance, rate, paths)
     if not first.qp.info.converged:
         return first
+    if not _time_for(time_left, first.qp.info.solve_time_ms):
+        return first  # the straighter path is optional: not past the budget
     straight = straight_allowance(bounds.s, ref, problem, allowance, config)
     bent = np.abs(path_curvature(ref, bounds.s, first.qp)) > straight + config.lateral.straight_slack
     # only beyond the first knots: the ego's own curvature at the start is a measurement
@@ -557,7 +560,7 @@ def _attempt_at(
     # footprint in the lane is taken.
     options = [r for r in (qp, qp.first) if r is not None and r.info.usable]
     inside = [paths.in_lane(bounds.s, r, corridor.surface) for r in options]
-    if not qp.info.converged and not any(inside):
+    if not qp.info.converged and not any(inside) and _time_for(time_left, qp.info.solve_time_ms):
         # too fast for the road, or no path in the lane: try the vehicle's own curvature limit
         limit = config.lateral.retry_curvature_share * problem.vehicle.curvature_limit
         allowance = np.full(bounds.s.shape, limit)
@@ -764,8 +767,14 @@ def lateral_stage(
     shared = _knots(ref, problem, at, d_ref, boxes, config, surface, fixed)
     corridor = _corridor(ref, problem, start, at, d_ref, boxes, None, config, surface, shared)
     paths = _Paths(ref, problem)
+    began = time.perf_counter()
     attempt = _attempt(solver, ref, problem, start, corridor, time_left, config, braking_share, paths)
-    if problem.options.lateral_margin > 0.0 and not attempt.better_than_unsolved():
+    took_ms = 1e3 * (time.perf_counter() - began)
+    if (
+        problem.options.lateral_margin > 0.0
+        and not attempt.better_than_unsolved()
+        and _time_for(time_left, took_ms)
+    ):
         # Where the margin to the lane's edges leaves no room (a tight turn, a narrow passage), it is
         # dropped, as it is knot by knot where the lane is narrow (the margin to obstacles is kept).
         # Its QP is solved only where it could rank higher: a farther block, or a first QP unsolved.
@@ -794,6 +803,14 @@ def lateral_stage(
     if bounds.blocked is None:
         return LateralPlan(None, qp.info, bounds, None, road_end)
     return hold_path(ref, problem, start, boxes, bounds, bounds.blocked, road_end, qp.info)
+
+
+def _time_for(time_left: Callable[[], float | None], needed_ms: float) -> bool:
+    """Whether the budget leaves ``needed_ms`` [ms] for an optional solve (what the one before it took):
+    a retry that improves the path is skipped rather than run past the budget, so that an overrun
+    reaches its fallback in time. Always, without a budget (``time_left()`` None)."""
+    left = time_left()
+    return left is None or 1e3 * left > needed_ms
 
 
 def _turnable(path: Path, vehicle: Vehicle) -> bool:

@@ -21,6 +21,7 @@ import json
 import re
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -43,7 +44,8 @@ from planner.lateral import (
 from planner.pipeline import plan
 from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import build_reference
-from planner.roads import straight, u_turn
+from planner.roads import demo_problem, straight, u_turn
+from planner.timing import StageTimer
 from planner.trajectory import frenet_path
 from planner.validation import ViolationKind, car_violations
 from planner_tools.io import problem_from_json
@@ -467,3 +469,29 @@ def test_bounds_with_the_knots_geometry_given_are_the_bounds_computed_whole() ->
         assert whole.blocked == shared.blocked
     # the obstacle narrows the bounds beside it
     assert np.all(whole.upper[(s > 13.0) & (s < 17.0)] < 0.8)
+
+
+def test_past_its_budget_the_lateral_stage_skips_the_solves_that_only_improve_its_path(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The retries at the vehicle's own curvature limit and without the lane margin, and the straighter
+    path, run only while the budget leaves them what the solve before took: past it, the plan reaches its
+    fallback instead of solving on. Without a budget (``time_left()`` None) they all run."""
+    base = demo_problem()
+    problem = replace(base, vehicle=replace(base.vehicle, max_curvature=0.01))  # its U-turn is too tight
+    solves: list[int] = []
+    solve = LateralQPSolver.solve
+
+    def counted(self: LateralQPSolver, *args: Any, **kwargs: Any) -> Any:
+        solves.append(1)
+        return solve(self, *args, **kwargs)
+
+    monkeypatch.setattr(LateralQPSolver, "solve", counted)
+    free = plan(problem)
+    unbudgeted = len(solves)
+    solves.clear()
+    monkeypatch.setattr(StageTimer, "remaining_s", lambda self: 1e-9)  # nothing left, whatever the budget
+    spent = plan(problem)
+    # the QP has no solution at the allowed curvature: unbudgeted, the vehicle's own limit is tried too
+    assert unbudgeted >= 2 and len(solves) < unbudgeted
+    assert free.status == spent.status == "stopped"
