@@ -19,9 +19,13 @@ written in the service's request contract (:class:`app.models.planning.PlanningR
   brake for the edge of the map in front of the traffic behind. A route that ends where no traffic
   leaves (a loading bay), or whose straight continuation would run into another part of the map, ends
   as it does.
-* **lane widths** — per reference point, the signed distance to the left edge of the leftmost and to
-  the right edge of the rightmost same-direction lanelet beside the route's lanelet there
-  (:func:`boundary_widths`; the edges are extended as rays, so end points get real widths).
+* **lane widths** — per reference point, the distance to the left edge of the leftmost and to the right
+  edge of the rightmost same-direction lanelet beside the route's lanelet there, along the reference's
+  normal as the planner reads a width (:func:`boundary_widths`, :func:`along_normal`: never less than the
+  nearest distance, lowered where an edge's vertex would fall outside the widths interpolated between
+  two points; the edges are extended as rays, so end points get real widths). The nearest distance
+  alone narrowed the inside of tight corners to the corner's vertex: by up to 0.49 m in DEU_Lohmar-26's
+  right angle, too tight there for a car.
 * **road widths** (``road``) — per reference point, how far the drivable surface reaches on each side
   along the reference's normal, without a gap, at least the lane and at most :data:`ROAD_BEYOND` beyond
   it (:func:`surface_widths`): the surface is the union of the lanelets a vehicle may drive on (every type
@@ -272,7 +276,12 @@ def clean_edge(line: ArrayLike) -> FloatArray:
 
 
 def boundary_widths(
-    points: ArrayLike, left_edge: ArrayLike, right_edge: ArrayLike, *, extension: float = EDGE_EXTENSION
+    points: ArrayLike,
+    left_edge: ArrayLike,
+    right_edge: ArrayLike,
+    *,
+    extension: float = EDGE_EXTENSION,
+    normals: ArrayLike | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Lane widths [m] left and right of each reference point (n, 2): its distance to the left and
     right edge polylines (both in driving order).
@@ -280,19 +289,69 @@ def boundary_widths(
     Both edges are extended by rays of ``extension`` [m] at their ends, so a point beside an end is
     measured sideways, not to the end point. A point outside the lane (the polygon the two edges
     enclose) gets width 0 on the side of the nearer edge — the side it has crossed.
+
+    With the points' left ``normals`` (unit, (n, 2)), the distance is measured along the normal, as the
+    planner offsets the reference (:func:`along_normal`); else it is the nearest distance, which on the
+    inside of a tight corner is the corner's vertex, well short of the edge along the normal.
     """
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    left = shapely.LineString(_extend(clean_edge(left_edge), extension))
-    right = shapely.LineString(_extend(clean_edge(right_edge), extension))
+    left_line = _extend(clean_edge(left_edge), extension)
+    right_line = _extend(clean_edge(right_edge), extension)
+    left = shapely.LineString(left_line)
+    right = shapely.LineString(right_line)
     geoms = shapely.points(pts)
     d_left = np.asarray(shapely.distance(geoms, left), dtype=float)
     d_right = np.asarray(shapely.distance(geoms, right), dtype=float)
+    if normals is not None:
+        normal = np.asarray(normals, dtype=float).reshape(-1, 2)
+        d_left = along_normal(pts, normal, left_line, d_left)
+        d_right = along_normal(pts, -normal, right_line, d_right)
     ring = np.vstack((shapely.get_coordinates(left), shapely.get_coordinates(right)[::-1]))
     lane = shapely.make_valid(shapely.Polygon(ring))
     inside = np.asarray(shapely.contains_xy(lane, pts[:, 0], pts[:, 1]), dtype=bool)
     out_left = ~inside & (d_left <= d_right)
     out_right = ~inside & ~out_left
     return np.where(out_left, 0.0, d_left), np.where(out_right, 0.0, d_right)
+
+
+#: a width along the normal exceeds the nearest distance to the edge by at most this [m] (a ray that
+#: grazes an edge meets it far away)
+NORMAL_EXCESS = 1.0
+
+
+def along_normal(
+    points: FloatArray, directions: FloatArray, edge: FloatArray, nearest: FloatArray
+) -> FloatArray:
+    """How far each point (n, 2) may go along its unit direction (n, 2) before it meets ``edge`` (a
+    polyline), as the planner's lane model reads a width — from a point of the reference, along its normal
+    — at least the ``nearest`` distance to the edge and at most :data:`NORMAL_EXCESS` beyond it.
+
+    Between two points the planner interpolates the widths linearly; where a vertex of the edge (the
+    inside of a corner) lies between the two points' normals, closer to the line they span than the
+    interpolation, both points' widths are lowered to the vertex's distance from that line, so that the
+    interpolated edge never passes beyond the vertex (but never below ``nearest``)."""
+    start, seg = edge[:-1], np.diff(edge, axis=0)
+    gap = start[None, :, :] - points[:, None, :]  # (n, m, 2)
+    den = directions[:, None, 0] * seg[None, :, 1] - directions[:, None, 1] * seg[None, :, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (gap[..., 0] * seg[None, :, 1] - gap[..., 1] * seg[None, :, 0]) / den
+        u = (gap[..., 0] * directions[:, None, 1] - gap[..., 1] * directions[:, None, 0]) / den
+    hit = np.isfinite(t) & (t > 0.0) & (u >= 0.0) & (u <= 1.0)
+    reach = np.min(np.where(hit, t, np.inf), axis=1)
+    width = np.clip(np.where(np.isfinite(reach), reach, nearest), nearest, nearest + NORMAL_EXCESS)
+    if points.shape[0] < 2:
+        return width
+    # vertices between two points' normals, on their side, closer to the chord than the widths
+    chord = np.diff(points, axis=0)
+    length = np.maximum(np.hypot(chord[:, 0], chord[:, 1]), 1e-12)
+    rel = edge[:, None, :] - points[None, :-1, :]  # (v, n − 1, 2)
+    along = (rel[..., 0] * chord[:, 0] + rel[..., 1] * chord[:, 1]) / length**2
+    side = directions[:-1, 0] * rel[..., 0] + directions[:-1, 1] * rel[..., 1]  # the offset on the chord
+    between = (along > 0.0) & (along < 1.0) & (side > 0.0)
+    cap = np.min(np.where(between, side, np.inf), axis=0)
+    width[:-1] = np.maximum(np.minimum(width[:-1], cap), nearest[:-1])
+    width[1:] = np.maximum(np.minimum(width[1:], cap), nearest[1:])
+    return width
 
 
 def surface_widths(
@@ -921,11 +980,14 @@ def _widths(
         rights.append(np.asarray(_side_chain(network, la, "right").right_vertices, dtype=float))
     left = np.zeros(points.shape[0])
     right = np.zeros(points.shape[0])
+    tangent = np.gradient(points, axis=0)
+    tangent /= np.maximum(np.hypot(tangent[:, 0], tangent[:, 1]), 1e-12)[:, None]
+    normal = np.column_stack((-tangent[:, 1], tangent[:, 0]))
     for k in range(len(lanelets)):
         mask = owner == k
         if mask.any():
             left[mask], right[mask] = boundary_widths(
-                points[mask], join_edges(lefts, k), join_edges(rights, k)
+                points[mask], join_edges(lefts, k), join_edges(rights, k), normals=normal[mask]
             )
     return left, right
 
