@@ -158,7 +158,16 @@ def drive(run: Run, solvers: Solvers, lateral: LateralPlan, candidate: Path) -> 
     with timer.stage("speed"):
         aim = speed_aim(run.goal, path, run.problem, run.config)
         speed = speed_stage(
-            solvers.speed, run.ref, lateral, path, run.problem, start, run.config, aim, decision.passing
+            solvers.speed,
+            run.ref,
+            lateral,
+            path,
+            run.problem,
+            start,
+            run.config,
+            aim,
+            decision.passing,
+            time_left=timer.remaining_s,
         )
     sqp = speed.solved
     if not sqp.info.usable:
@@ -171,7 +180,7 @@ def drive(run: Run, solvers: Solvers, lateral: LateralPlan, candidate: Path) -> 
         profile, traj, bad, note = _trajectory(
             run.ref, run.problem, path, speed, run.static, decision.borrows
         )
-    if bad and speed.first:
+    if bad and speed.first and timer.overrun("trajectory") is None:
         # passing in front of crossing traffic breaks a check: yield to it as to everything ahead
         with timer.stage("speed"):
             speed = speed_stage(
@@ -185,6 +194,7 @@ def drive(run: Run, solvers: Solvers, lateral: LateralPlan, candidate: Path) -> 
                 aim,
                 decision.passing,
                 go_first=False,
+                time_left=timer.remaining_s,
             )
         sqp = speed.solved
         if not sqp.info.usable:

@@ -33,6 +33,7 @@ from planner.kinematics import body_centre, curve_speed, lateral_curvature
 from planner.lane import lane_bounds
 from planner.problem import Lane, PlanningProblem, Vehicle, speed_cap
 from planner.reference import FloatArray, ReferenceLine
+from planner.timing import time_for
 from planner.trajectory import Path, frenet_path
 from planner.validation import lane_overshoot, leaves_lane, outside_lane
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
@@ -484,7 +485,7 @@ def _attempt(
     first = _attempt_at(solver, ref, problem, start, corridor, time_left, config, allowance, rate, paths)
     if not first.qp.info.converged:
         return first
-    if not _time_for(time_left, first.qp.info.solve_time_ms):
+    if not time_for(time_left, first.qp.info.solve_time_ms):
         return first  # the straighter path is optional: not past the budget
     straight = straight_allowance(bounds.s, ref, problem, allowance, config)
     bent = np.abs(path_curvature(ref, bounds.s, first.qp)) > straight + config.lateral.straight_slack
@@ -560,7 +561,7 @@ def _attempt_at(
     # footprint in the lane is taken.
     options = [r for r in (qp, qp.first) if r is not None and r.info.usable]
     inside = [paths.in_lane(bounds.s, r, corridor.surface) for r in options]
-    if not qp.info.converged and not any(inside) and _time_for(time_left, qp.info.solve_time_ms):
+    if not qp.info.converged and not any(inside) and time_for(time_left, qp.info.solve_time_ms):
         # too fast for the road, or no path in the lane: try the vehicle's own curvature limit
         limit = config.lateral.retry_curvature_share * problem.vehicle.curvature_limit
         allowance = np.full(bounds.s.shape, limit)
@@ -773,7 +774,7 @@ def lateral_stage(
     if (
         problem.options.lateral_margin > 0.0
         and not attempt.better_than_unsolved()
-        and _time_for(time_left, took_ms)
+        and time_for(time_left, took_ms)
     ):
         # Where the margin to the lane's edges leaves no room (a tight turn, a narrow passage), it is
         # dropped, as it is knot by knot where the lane is narrow (the margin to obstacles is kept).
@@ -803,14 +804,6 @@ def lateral_stage(
     if bounds.blocked is None:
         return LateralPlan(None, qp.info, bounds, None, road_end)
     return hold_path(ref, problem, start, boxes, bounds, bounds.blocked, road_end, qp.info)
-
-
-def _time_for(time_left: Callable[[], float | None], needed_ms: float) -> bool:
-    """Whether the budget leaves ``needed_ms`` [ms] for an optional solve (what the one before it took):
-    a retry that improves the path is skipped rather than run past the budget, so that an overrun
-    reaches its fallback in time. Always, without a budget (``time_left()`` None)."""
-    left = time_left()
-    return left is None or 1e3 * left > needed_ms
 
 
 def _turnable(path: Path, vehicle: Vehicle) -> bool:

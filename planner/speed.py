@@ -34,7 +34,7 @@ bounds of its time window and the top of its speed range over its region. Withou
 from __future__ import annotations
 
 import math
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -55,6 +55,7 @@ from planner.st_bounds import (
     moving_obstacles,
     space_time_bounds,
 )
+from planner.timing import time_for
 from planner.trajectory import Path, Trajectory, body_trajectory, sample
 from solvers.speed_problem import SpeedProblem, SpeedResult, integrate_jerk
 from solvers.speed_profiles import braking_profile, cruise_profile, limited_profile
@@ -275,12 +276,15 @@ def speed_stage(
     aim: SpeedAim | None = None,
     passing: Collection[str] = (),
     go_first: bool = True,
+    time_left: Callable[[], float | None] = lambda: None,
 ) -> SpeedPlan:
     """The speed profile along the lateral stage's ``path`` (see the module docstring), with a goal's
     ``aim``; the moving obstacles ``passing`` overtakes are not followed
     (:func:`planner.st_bounds.space_time_bounds`). With ``go_first``, crossing traffic the vehicle can
     pass in front of (:func:`pass_first`) is passed so, where the profile manages it within the limits
-    (else it yields to it, as to every other obstacle ahead)."""
+    (else it yields to it, as to every other obstacle ahead). The second solve with the emergency jerk
+    runs only while ``time_left`` [s] (None: no budget) leaves what the first took
+    (:func:`planner.timing.time_for`): past the budget the plan falls back to braking anyway."""
     cfg = config.speed
     steps, dt = profile_grid(problem.options, cfg)
     s_stop = stop_position(ref, path, lateral, config.stop_gap, problem.vehicle.front_extent)
@@ -302,12 +306,14 @@ def speed_stage(
                 return SpeedPlan(speed, Profile.optimised(speed), ids)
     bounds = space_time_bounds(ref, path, problem, t, start.s, config, passing)
     speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
-    if max(speed.speed_violation, speed.position_violation) > cfg.slack and jerk < cfg.emergency_jerk:
+    # a second solve only while the budget leaves what the first took (past it, the plan falls back)
+    again = jerk < cfg.emergency_jerk and time_for(time_left, speed.info.solve_time_ms)
+    if again and max(speed.speed_violation, speed.position_violation) > cfg.slack:
         # The comfortable jerk cannot slow down in time (a curve or an obstacle close ahead): safety
         # before comfort, brake as hard as the emergency jerk allows. (Not for a follower bound alone:
         # more jerk hardly speeds up sooner.)
         speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config, aim)
-    elif speed.follower_violation > cfg.slack and jerk < cfg.emergency_jerk:
+    elif again and speed.follower_violation > cfg.slack:
         # Behind the follower bound with the comfortable jerk: braking later, as hard as the emergency
         # jerk allows, keeps ahead of it longer where a curve or a leader ahead makes the speed drop.
         harder = _solve(solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config, aim)

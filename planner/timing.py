@@ -8,7 +8,7 @@ is at least the sum of the stages (what runs between them is counted too).
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Final, Literal, get_args
 
@@ -73,3 +73,11 @@ class StageTimer:
         out: dict[str, float] = {name: self._ms[name] for name in STAGES if name in self._ms}
         out[TOTAL] = self.elapsed_ms()
         return out
+
+
+def time_for(time_left: Callable[[], float | None], needed_ms: float) -> bool:
+    """Whether the budget leaves ``needed_ms`` [ms] for an optional solve (what the one before it took):
+    a re-solve that only improves a stage's answer is skipped rather than run past the budget, so that
+    an overrun reaches its fallback in time. Always, without a budget (``time_left()`` None)."""
+    left = time_left()
+    return left is None or 1e3 * left > needed_ms

@@ -27,7 +27,7 @@ from planner.problem import (
     target_speed,
 )
 from planner.reference import build_reference
-from planner.roads import straight
+from planner.roads import hairpin, straight, two_lane_problem
 from planner.speed import (
     ProfileKind,
     SpeedPlan,
@@ -39,8 +39,10 @@ from planner.speed import (
     speed_limit,
     speed_stage,
 )
+from planner.timing import StageTimer
 from planner.trajectory import frenet_path
 from planner.validation import Violation, ViolationKind
+from solvers.speed_sqp import SpeedSolver
 
 ROAD = straight(300.0, step=5.0)
 
@@ -311,3 +313,26 @@ def test_passing_in_front_that_breaks_a_check_yields_instead(monkeypatch: pytest
     assert violations(problem, result.trajectory) == []
     x_then = float(np.interp(6.5, result.trajectory.t, result.trajectory.x))
     assert x_then + 2.25 < 80.0 - 0.9  # short of it as it crosses
+
+
+def test_past_its_budget_the_speed_stage_does_not_solve_again_with_the_emergency_jerk(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """18 m/s into a hairpin of radius 15 m: the comfortable jerk cannot slow down in time, and the
+    profile is solved again with the emergency jerk — only while the budget leaves what the first solve
+    took (past it, the plan falls back anyway). Without a budget both solves run."""
+    problem = two_lane_problem(hairpin(15.0, leg=30.0), speed=18.0, road=False)
+    solves: list[int] = []
+    solve = SpeedSolver.solve
+
+    def counted(self: SpeedSolver, *args: Any, **kwargs: Any) -> Any:
+        solves.append(1)
+        return solve(self, *args, **kwargs)
+
+    monkeypatch.setattr(SpeedSolver, "solve", counted)
+    plan(problem)
+    assert len(solves) == 2
+    solves.clear()
+    monkeypatch.setattr(StageTimer, "remaining_s", lambda self: 1e-9)  # nothing left, whatever the budget
+    plan(problem)
+    assert len(solves) == 1
