@@ -157,18 +157,24 @@ def drive(run: Run, solvers: Solvers, lateral: LateralPlan, candidate: Path) -> 
 
     with timer.stage("speed"):
         aim = speed_aim(run.goal, path, run.problem, run.config)
-        speed = speed_stage(
-            solvers.speed,
-            run.ref,
-            lateral,
-            path,
-            run.problem,
-            start,
-            run.config,
-            aim,
-            decision.passing,
-            time_left=timer.remaining_s,
-        )
+
+    def profile_along(go_first: bool) -> SpeedPlan:
+        with timer.stage("speed"):
+            return speed_stage(
+                solvers.speed,
+                run.ref,
+                lateral,
+                path,
+                run.problem,
+                start,
+                run.config,
+                aim,
+                decision.passing,
+                go_first=go_first,
+                time_left=timer.remaining_s,
+            )
+
+    speed = profile_along(go_first=True)
     sqp = speed.solved
     if not sqp.info.usable:
         failed = f"speed profile failed: {sqp.info.status}"
@@ -182,20 +188,7 @@ def drive(run: Run, solvers: Solvers, lateral: LateralPlan, candidate: Path) -> 
         )
     if bad and speed.first and timer.overrun("trajectory") is None:
         # passing in front of crossing traffic breaks a check: yield to it as to everything ahead
-        with timer.stage("speed"):
-            speed = speed_stage(
-                solvers.speed,
-                run.ref,
-                lateral,
-                path,
-                run.problem,
-                start,
-                run.config,
-                aim,
-                decision.passing,
-                go_first=False,
-                time_left=timer.remaining_s,
-            )
+        speed = profile_along(go_first=False)
         sqp = speed.solved
         if not sqp.info.usable:
             failed = f"speed profile failed: {sqp.info.status}"

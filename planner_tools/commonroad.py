@@ -314,6 +314,14 @@ def boundary_widths(
     return np.where(out_left, 0.0, d_left), np.where(out_right, 0.0, d_right)
 
 
+def left_normals(points: FloatArray) -> FloatArray:
+    """The unit normals (n, 2), pointing left, of a polyline (n, 2) in driving order (central
+    differences)."""
+    tangent = np.gradient(points, axis=0)
+    tangent /= np.maximum(np.hypot(tangent[:, 0], tangent[:, 1]), 1e-12)[:, None]
+    return np.column_stack((-tangent[:, 1], tangent[:, 0]))
+
+
 #: a width along the normal exceeds the nearest distance to the edge by at most this [m] (a ray that
 #: grazes an edge meets it far away)
 NORMAL_EXCESS = 1.0
@@ -369,9 +377,7 @@ def surface_widths(
     lane; never less than the lane. A dip at :data:`ROAD_SLIVER` points or fewer between wider
     neighbours is filled (a morphological closing along the line)."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    tangent = np.gradient(pts, axis=0)
-    tangent /= np.maximum(np.hypot(tangent[:, 0], tangent[:, 1]), 1e-12)[:, None]
-    normal = np.column_stack((-tangent[:, 1], tangent[:, 0]))
+    normal = left_normals(pts)
     offsets = np.arange(1, int(np.ceil(beyond / step)) + 1) * step  # beyond the lane's edge
     shapely.prepare(surface)
     out = []
@@ -980,9 +986,7 @@ def _widths(
         rights.append(np.asarray(_side_chain(network, la, "right").right_vertices, dtype=float))
     left = np.zeros(points.shape[0])
     right = np.zeros(points.shape[0])
-    tangent = np.gradient(points, axis=0)
-    tangent /= np.maximum(np.hypot(tangent[:, 0], tangent[:, 1]), 1e-12)[:, None]
-    normal = np.column_stack((-tangent[:, 1], tangent[:, 0]))
+    normal = left_normals(points)
     for k in range(len(lanelets)):
         mask = owner == k
         if mask.any():

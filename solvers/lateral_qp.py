@@ -362,13 +362,11 @@ class LateralQPSolver:
             or status is SolverStatus.SOLVED_INACCURATE
             or int(info.status_val) == _INACCURATE_INFEASIBLE
         )
-        if not (self._second_backend and second_backend):
+        proven = status is SolverStatus.INFEASIBLE and not hand_over  # OSQP's own certificate
+        if not (self._second_backend and second_backend and (hand_over or (proven and relax))):
             return result(x, status, message)
-        if status is SolverStatus.INFEASIBLE and not hand_over and relax:
-            # OSQP's certificate is the proof (no second opinion on it): straight to the elastic problem
+        if proven:  # the certificate is the proof (no second opinion on it): straight to the elastic QP
             return relaxed(result(x, status, message))
-        if not hand_over:
-            return result(x, status, message)
         second = solve_conic_qp(
             workspace.P,
             q,

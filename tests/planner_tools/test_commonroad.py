@@ -62,22 +62,15 @@ def test_widths_follow_a_curved_lane_and_are_zero_beyond_an_edge() -> None:
     np.testing.assert_array_equal(wr, 0.0)
 
 
-def _normals(points: np.ndarray) -> np.ndarray:
-    tangent = np.gradient(points, axis=0)
-    tangent /= np.hypot(tangent[:, 0], tangent[:, 1])[:, None]
-    return np.column_stack((-tangent[:, 1], tangent[:, 0]))
-
-
 def test_along_the_normal_a_straight_or_round_lane_has_its_widths() -> None:
     """Where the edges run parallel to the line, the width along the normal is the nearest distance."""
     pts = np.column_stack((np.linspace(0.0, 50.0, 51), np.full(51, 0.25)))
     left, right = [[0.0, 2.0], [50.0, 2.0]], [[0.0, -1.5], [50.0, -1.5]]
-    straight = cr.boundary_widths(pts, left, right, normals=_normals(pts))
+    straight = cr.boundary_widths(pts, left, right, normals=cr.left_normals(pts))
     np.testing.assert_allclose(straight, [np.full(51, 1.75), np.full(51, 1.75)], atol=1e-9)
     centre = _arc(10.0, -0.45 * math.pi, -0.05 * math.pi, 20)
-    wl, wr = cr.boundary_widths(
-        centre, _arc(8.0, -0.5 * math.pi, 0.0), _arc(13.0, -0.5 * math.pi, 0.0), normals=_normals(centre)
-    )
+    inner, outer = _arc(8.0, -0.5 * math.pi, 0.0), _arc(13.0, -0.5 * math.pi, 0.0)
+    wl, wr = cr.boundary_widths(centre, inner, outer, normals=cr.left_normals(centre))
     np.testing.assert_allclose(wl, 2.0, atol=0.02)
     np.testing.assert_allclose(wr, 3.0, atol=0.02)
 
@@ -94,7 +87,7 @@ def test_inside_a_sharp_corner_the_width_reaches_the_edge_along_the_normal_not_p
     inner = np.array([[-20.0, -1.5], [1.5, -1.5], [1.5, -23.0]])  # the vertex at (1.5, -1.5)
     outer = np.array([[-20.0, 1.5], [4.5, 1.5], [4.5, -23.0]])
     nearest_l, nearest_r = cr.boundary_widths(pts, outer, inner)
-    wl, wr = cr.boundary_widths(pts, outer, inner, normals=_normals(pts))
+    wl, wr = cr.boundary_widths(pts, outer, inner, normals=cr.left_normals(pts))
     assert np.all(wr >= nearest_r - 1e-12) and np.all(wl >= nearest_l - 1e-12)
     assert float(np.max(wr - nearest_r)) > 0.1  # wider on the inside before and after the apex
     # the edge the planner interpolates between two points stays on the lane's side of the vertex
@@ -103,7 +96,7 @@ def test_inside_a_sharp_corner_the_width_reaches_the_edge_along_the_normal_not_p
         chord = pts[i + 1] - pts[i]
         along = float(np.dot(vertex - pts[i], chord) / np.dot(chord, chord))
         if 0.0 < along < 1.0:
-            offset = float(np.dot(vertex - pts[i], -_normals(pts)[i]))
+            offset = float(np.dot(vertex - pts[i], -cr.left_normals(pts)[i]))
             interpolated = (1.0 - along) * wr[i] + along * wr[i + 1]
             assert interpolated <= max(offset, (1.0 - along) * nearest_r[i] + along * nearest_r[i + 1]) + 1e-9
 
