@@ -16,6 +16,7 @@ from shapely import LineString
 from shapely.geometry.base import BaseGeometry
 
 from planner.collision import outline_points
+from planner.config import DEFAULT_CONFIG
 from planner.frenet import to_cartesian, to_frenet
 from planner.kinematics import lateral_acceleration, planned_point, steering_angle
 from planner.problem import DynamicObstacle, Lane, PlanningProblem, Vehicle
@@ -46,6 +47,9 @@ def folds_back(ref: ReferenceLine, xy: ArrayLike) -> bool:
     return backward_steps(ref, xy) > 0 or self_intersects(xy)
 
 
+#: the jerk [m/s³] at which the speed check lets a vehicle that starts faster than ``max_speed`` reach
+#: full braking (:func:`fastest_braking`): the emergency jerk the fallback's braking profile uses
+EMERGENCY_JERK = DEFAULT_CONFIG.speed.emergency_jerk
 #: tolerances of the trajectory checks
 _GEOMETRY_TOL = 1e-3  # [m]
 _RATE_TOL = 1e-3  # relative, on limits
@@ -458,11 +462,24 @@ def consistency_violations(ref: ReferenceLine, vehicle: Vehicle, traj: Trajector
 def speed_violations(problem: PlanningProblem, traj: Trajectory) -> list[Violation]:
     """Faster than ``max_speed`` [m/s] where an ego that starts faster could have braked below the
     speed: the allowance falls from the ego's speed at half ``max_deceleration`` (the jerk-limited
-    ramp to full braking takes a while)."""
+    ramp to full braking takes a while), never faster than :func:`fastest_braking` can (an ego
+    measured speeding up needs the ramp from its acceleration first)."""
     vehicle = problem.vehicle
-    braking = problem.ego.speed - 0.5 * vehicle.max_deceleration * traj.t
+    braking = np.maximum(
+        problem.ego.speed - 0.5 * vehicle.max_deceleration * traj.t, fastest_braking(problem, traj.t)
+    )
     allowed = np.maximum(vehicle.max_speed, braking) * (1 + _SPEED_REL_TOL) + _SPEED_ABS_TOL
     fast = traj.v > allowed
     if not np.any(fast):
         return []
     return [Violation(ViolationKind.SPEED, t=_first(traj.t, fast), value=float(traj.v.max()))]
+
+
+def fastest_braking(problem: PlanningProblem, t: FloatArray, jerk: float = EMERGENCY_JERK) -> FloatArray:
+    """The speed [m/s] at times ``t`` [s] of braking at once: the ego's measured acceleration [m/s²]
+    falls at ``jerk`` [m/s³] to ``−max_deceleration`` and stays there (the speed no lower than 0)."""
+    a0, decel = problem.ego.acceleration, problem.vehicle.max_deceleration
+    ramp = max((a0 + decel) / jerk, 0.0)  # [s] until full braking (none where the ego brakes harder)
+    on_ramp = np.minimum(t, ramp)
+    v = problem.ego.speed + a0 * on_ramp - 0.5 * jerk * on_ramp**2 - decel * np.maximum(t - ramp, 0.0)
+    return np.maximum(v, 0.0)

@@ -15,6 +15,7 @@ import math
 from typing import Any
 
 import numpy as np
+import pytest
 from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, example, given, note, settings
 from hypothesis import strategies as st
@@ -134,3 +135,18 @@ def test_the_two_false_oks_of_the_issue_are_fallbacks(client: TestClient, demo: 
     answer = client.post("/v1/plan", json=fast).json()
     assert answer["status"] == "fallback", answer["message"]
     assert "lateral acceleration" in answer["message"]  # what makes it impossible
+
+
+def test_an_ego_faster_than_its_max_speed_and_speeding_up_brakes_at_once(client: TestClient) -> None:
+    """Measured at 18 m/s and +2 m/s² in a vehicle whose max_speed is 7 m/s: the plan brakes at once (its
+    acceleration falls at the emergency jerk) and is an ``ok`` that passes the independent checks; the
+    speed check asked for more than the jerk-limited ramp from a positive acceleration can give, so this
+    was a fallback."""
+    request = copy.deepcopy(ROADS["straight"])
+    request["vehicle"] = {"max_speed": 7.0, "max_deceleration": 8.0}
+    request["ego"].update(speed=18.0, acceleration=2.0)
+    answer = client.post("/v1/plan", json=request).json()
+    assert answer["status"] == "ok", answer["message"]
+    assert plan_problems(request, answer, ["ok"]) == []
+    accelerations = [p["a"] for p in answer["trajectory"]]
+    assert accelerations[0] == pytest.approx(2.0) and min(accelerations[:6]) <= -7.9

@@ -25,14 +25,18 @@ from planner.roads import arc, straight
 from planner.st_bounds import static_shapes
 from planner.trajectory import Trajectory, body_trajectory, frenet_path, sample
 from planner.validation import (
+    EMERGENCY_JERK,
     HITS,
     Violation,
     ViolationKind,
     consistency_violations,
+    fastest_braking,
     lane_overshoot,
     leaves_lane,
+    speed_violations,
     trajectory_violations,
 )
+from solvers.speed_problem import integrate_jerk
 
 DT, SPEED = 0.1, 5.0
 STRAIGHT = build_reference(straight(200.0, step=1.0))
@@ -336,3 +340,36 @@ def test_a_side_cutting_the_inside_of_a_bend_between_its_corners_leaves_the_lane
     assert left[1] == pytest.approx(radius - (radius - d - 0.5 * width) - half_lane, abs=2e-3)  # 0.10 m
     assert right.tolist() == [0.0, 0.0] and left[0] == 0.0
     assert leaves_lane(ref, problem, xy[:, 0], xy[:, 1], heading).tolist() == [False, True]
+
+
+def _braking_from(v0: float, a0: float, jerk: float, decel: float, steps: int = 50) -> Trajectory:
+    """Along the straight from ``s = 10 m`` at ``v0`` [m/s], the acceleration falling from ``a0`` at
+    ``jerk`` [m/s³] to ``−decel`` [m/s²] and held there until the vehicle stands."""
+    t = np.arange(steps + 1) * DT
+    a = np.maximum(a0 - jerk * t, -decel)
+    s, v, _ = integrate_jerk(DT, 0.0, v0, a0, np.diff(a) / DT)
+    stop = int(np.argmax(v <= 0.0)) if np.any(v <= 0.0) else steps + 1
+    v, a = np.where(np.arange(steps + 1) < stop, v, 0.0), np.where(np.arange(steps + 1) < stop, a, 0.0)
+    s = np.maximum.accumulate(np.where(np.arange(steps + 1) < stop, s, s[max(stop - 1, 0)]))
+    path = frenet_path(STRAIGHT, np.linspace(10.0, 10.0 + s[-1] + 5.0, 200), *np.zeros((3, 200)))
+    return sample(path, t, s, v, a, np.diff(a) / DT, DT, STRAIGHT)
+
+
+def test_an_ego_faster_than_max_speed_and_speeding_up_may_brake_with_the_emergency_jerk() -> None:
+    """Measured at 18 m/s and +2 m/s² with a max_speed of 7 m/s: braking at once (the acceleration falling
+    at the emergency jerk to −8 m/s²) is not too fast, although it loses speed more slowly than half the
+    deceleration from the start; a ramp at a third of that jerk is."""
+    at_once = _braking_from(18.0, 2.0, EMERGENCY_JERK, 8.0)
+    ego = Ego(x=float(at_once.x[0]), y=float(at_once.y[0]), heading=0.0, speed=18.0, acceleration=2.0)
+    problem = PlanningProblem(
+        STRAIGHT.points, Lane(3.5, 3.5), ego, (), Vehicle(max_speed=7.0, max_deceleration=8.0)
+    )
+    assert at_once.v[1] > 18.0 - 0.5 * 8.0 * DT + 0.05  # the old allowance's
+    assert speed_violations(problem, at_once) == []
+    slow = _braking_from(18.0, 2.0, EMERGENCY_JERK / 3.0, 8.0)
+    (too_fast,) = speed_violations(problem, slow)
+    assert too_fast.kind is ViolationKind.SPEED
+    # measured braking harder than half the deceleration, the allowance is half of it as before
+    braking = replace(problem, ego=replace(ego, acceleration=-8.0))
+    np.testing.assert_allclose(fastest_braking(braking, np.array([0.0, 1.0])), [18.0, 10.0])
+    assert speed_violations(braking, _braking_from(18.0, -8.0, EMERGENCY_JERK, 4.0)) == []
