@@ -194,14 +194,15 @@ def _speed_problem(
     aim: SpeedAim | None = None,
 ) -> SpeedProblem:
     """The speed problem along ``path`` from the ego's speed and acceleration (that within the vehicle's
-    limits), with the speed limit ``limit_v`` [m/s] at the path's knots, the target ``v_target`` [m/s]
-    and the bounds on ``σ`` [m] (see :class:`solvers.speed.SpeedProblem`), a goal's from ``aim``."""
+    limits, :func:`initial_acceleration`), with the speed limit ``limit_v`` [m/s] at the path's knots,
+    the target ``v_target`` [m/s] and the bounds on ``σ`` [m] (see :class:`solvers.speed.SpeedProblem`),
+    a goal's from ``aim``."""
     v = problem.vehicle
     return SpeedProblem(
         dt=dt,
         steps=steps,
         v0=max(problem.ego.speed, 0.0),
-        a0=float(np.clip(problem.ego.acceleration, -v.max_deceleration, v.max_acceleration)),
+        a0=initial_acceleration(problem),
         limit_s=path.sigma,
         limit_v=limit_v,
         v_target=v_target,
@@ -214,6 +215,19 @@ def _speed_problem(
         goal_lower=None if aim is None else aim.lower,
         goal_upper=None if aim is None else aim.upper,
     )
+
+
+def initial_acceleration(
+    problem: PlanningProblem, jerk: float = DEFAULT_CONFIG.speed.emergency_jerk
+) -> float:
+    """The acceleration [m/s²] the profiles start from: the ego's, within the vehicle's limits, and no
+    harder braking than releasing it at ``jerk`` [m/s³] (the emergency jerk) brings to a stop exactly,
+    ``−√(2·jerk·v₀)``. A vehicle braking harder comes to a stop before the release ends and its brakes
+    hold it there (a standing one measured braking: its acceleration moves nothing); a profile started
+    from the measured value would roll backwards through the release."""
+    vehicle, ego = problem.vehicle, problem.ego
+    measured = float(np.clip(ego.acceleration, -vehicle.max_deceleration, vehicle.max_acceleration))
+    return max(measured, -math.sqrt(2.0 * jerk * max(ego.speed, 0.0)))
 
 
 def stop_position(

@@ -33,6 +33,7 @@ from planner.speed import (
     SpeedPlan,
     braking,
     escape,
+    initial_acceleration,
     keep_speed,
     profile_grid,
     reach_speed,
@@ -336,3 +337,27 @@ def test_past_its_budget_the_speed_stage_does_not_solve_again_with_the_emergency
     monkeypatch.setattr(StageTimer, "remaining_s", lambda self: 1e-9)  # nothing left, whatever the budget
     plan(problem)
     assert len(solves) == 1
+
+
+@pytest.mark.parametrize("speed", [0.0, 0.3])
+@pytest.mark.parametrize("measured", [-5.0, -8.0])
+def test_a_vehicle_measured_braking_as_it_stops_is_planned_standing_or_stopping_not_rolling_back(
+    speed: float, measured: float
+) -> None:
+    """Standing (or nearly) and measured braking hard: the brakes hold a standing vehicle, so the profiles
+    start from no harder braking than releasing it at the emergency jerk stops exactly (−√(2·jerk·v₀)).
+    From the measured value the release took the profile backwards (σ falling, positions against v·dt):
+    the plan was a fallback; now it is ``ok``, every check passed, its speed never negative."""
+    jerk = DEFAULT_CONFIG.speed.emergency_jerk
+    vehicle = Vehicle(max_deceleration=8.0)
+    problem = PlanningProblem(
+        ROAD, Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, speed, acceleration=measured), (), vehicle, Options()
+    )
+    assert initial_acceleration(problem) == pytest.approx(max(measured, -np.sqrt(2.0 * jerk * speed)))
+    result = plan(problem)
+    assert result.status == "ok", result.message
+    assert result.trajectory is not None and np.all(result.trajectory.v >= 0.0)
+    assert np.all(np.diff(result.trajectory.s) >= -1e-9)
+    # not standing: the measured braking is kept wherever the release ends at or above a standstill
+    moving = replace(problem, ego=replace(problem.ego, speed=5.0))
+    assert initial_acceleration(moving) == measured
