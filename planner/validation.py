@@ -462,11 +462,13 @@ def consistency_violations(ref: ReferenceLine, vehicle: Vehicle, traj: Trajector
 def speed_violations(problem: PlanningProblem, traj: Trajectory) -> list[Violation]:
     """Faster than ``max_speed`` [m/s] where an ego that starts faster could have braked below the
     speed: the allowance falls from the ego's speed at half ``max_deceleration`` (the jerk-limited
-    ramp to full braking takes a while), never faster than :func:`fastest_braking` can (an ego
-    measured speeding up needs the ramp from its acceleration first)."""
-    vehicle = problem.vehicle
+    ramp to full braking takes a while), never faster than :func:`fastest_braking` can (an ego measured
+    braking lightly needs the ramp first), and never above the ego's speed (an ego measured speeding up
+    cannot keep it: its answer breaks the limit, a braking fallback)."""
+    vehicle, ego = problem.vehicle, problem.ego
     braking = np.maximum(
-        problem.ego.speed - 0.5 * vehicle.max_deceleration * traj.t, fastest_braking(problem, traj.t)
+        ego.speed - 0.5 * vehicle.max_deceleration * traj.t,
+        np.minimum(fastest_braking(problem, traj.t), ego.speed),
     )
     allowed = np.maximum(vehicle.max_speed, braking) * (1 + _SPEED_REL_TOL) + _SPEED_ABS_TOL
     fast = traj.v > allowed

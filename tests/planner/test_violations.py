@@ -355,20 +355,25 @@ def _braking_from(v0: float, a0: float, jerk: float, decel: float, steps: int = 
     return sample(path, t, s, v, a, np.diff(a) / DT, DT, STRAIGHT)
 
 
-def test_an_ego_faster_than_max_speed_and_speeding_up_may_brake_with_the_emergency_jerk() -> None:
-    """Measured at 18 m/s and +2 m/s² with a max_speed of 7 m/s: braking at once (the acceleration falling
+def test_an_ego_faster_than_max_speed_may_brake_with_the_emergency_jerk_but_never_speed_up() -> None:
+    """Measured at 18 m/s and −0.5 m/s² with a max_speed of 7 m/s: braking at once (the acceleration falling
     at the emergency jerk to −8 m/s²) is not too fast, although it loses speed more slowly than half the
-    deceleration from the start; a ramp at a third of that jerk is."""
-    at_once = _braking_from(18.0, 2.0, EMERGENCY_JERK, 8.0)
-    ego = Ego(x=float(at_once.x[0]), y=float(at_once.y[0]), heading=0.0, speed=18.0, acceleration=2.0)
-    problem = PlanningProblem(
-        STRAIGHT.points, Lane(3.5, 3.5), ego, (), Vehicle(max_speed=7.0, max_deceleration=8.0)
-    )
-    assert at_once.v[1] > 18.0 - 0.5 * 8.0 * DT + 0.05  # the old allowance's
+    deceleration from the start; a ramp at a third of that jerk is. Measured speeding up (+4 m/s²), even
+    braking at once goes past the ego's speed first: too fast (no answer keeps the limit then)."""
+    at_once = _braking_from(18.0, -0.5, EMERGENCY_JERK, 8.0)
+    ego = Ego(x=float(at_once.x[0]), y=float(at_once.y[0]), heading=0.0, speed=18.0, acceleration=-0.5)
+    vehicle = Vehicle(max_speed=7.0, max_acceleration=5.0, max_deceleration=8.0)
+    problem = PlanningProblem(STRAIGHT.points, Lane(3.5, 3.5), ego, (), vehicle)
+    assert at_once.v[1] > 18.0 - 0.5 * 8.0 * DT + 0.05  # beyond the allowance of half the deceleration
     assert speed_violations(problem, at_once) == []
-    slow = _braking_from(18.0, 2.0, EMERGENCY_JERK / 3.0, 8.0)
+    slow = _braking_from(18.0, -0.5, EMERGENCY_JERK / 3.0, 8.0)
     (too_fast,) = speed_violations(problem, slow)
     assert too_fast.kind is ViolationKind.SPEED
+    speeding_up = replace(problem, ego=replace(ego, acceleration=4.0))
+    overshoot = _braking_from(18.0, 4.0, EMERGENCY_JERK, 8.0)
+    assert overshoot.v.max() > 18.2
+    (past_its_speed,) = speed_violations(speeding_up, overshoot)
+    assert past_its_speed.value == overshoot.v.max()
     # measured braking harder than half the deceleration, the allowance is half of it as before
     braking = replace(problem, ego=replace(ego, acceleration=-8.0))
     np.testing.assert_allclose(fastest_braking(braking, np.array([0.0, 1.0])), [18.0, 10.0])
