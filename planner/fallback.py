@@ -79,18 +79,21 @@ class _Option:
     violations: list[Violation]
 
 
-def severity(bad: Collection[Violation], rear: Collection[str]) -> tuple[int, int, int, int, int]:
-    """How bad a trajectory's violations ``bad`` are, to compare fallbacks (smaller is better): numbers
-    that disagree (:data:`~planner.validation.CONSISTENCY`), the vehicle's limits broken
+def severity(bad: Collection[Violation], rear: Collection[str]) -> tuple[int, int, int, int, int, int]:
+    """How bad a trajectory's violations ``bad`` are, to compare fallbacks (smaller is better): first
+    whether it does not start at the ego (:attr:`~planner.validation.ViolationKind.START`: not the ego's
+    motion at all, where the others' numbers disagree only along it), then numbers that disagree
+    (:data:`~planner.validation.CONSISTENCY`), the vehicle's limits broken
     (:data:`~planner.validation.LIMITS`), hits of obstacles other than the vehicles behind (ids
     ``rear``), hits from behind, then the other checks (the lane, the road's end, which do not hit
     anything by themselves)."""
     rear_ids = set(rear)
+    elsewhere = int(any(v.kind is ViolationKind.START for v in bad))
     wrong = sum(v.kind in CONSISTENCY for v in bad)
     limits = sum(v.kind in LIMITS for v in bad)
     hits = [v for v in bad if v.kind in HITS]
     behind = sum(from_behind(v, rear_ids) for v in hits)
-    return wrong, limits, len(hits) - behind, behind, len(bad) - len(hits) - limits - wrong
+    return elsewhere, wrong, limits, len(hits) - behind, behind, len(bad) - len(hits) - limits - wrong
 
 
 def _rank(option: _Option, rear: set[str]) -> tuple[float, ...]:

@@ -18,6 +18,7 @@ from planner.fallback import fallback, severity
 from planner.pipeline import plan
 from planner.problem import DynamicObstacle, Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import build_reference
+from planner.roads import u_turn
 from planner.speed import Profile, ProfileKind
 from planner.st_bounds import static_shapes
 from planner.timing import STAGES, TOTAL
@@ -40,17 +41,21 @@ def test_wrong_numbers_rank_first_then_a_broken_limit_a_hit_ahead_one_from_behin
     lane = [Violation(KIND.LANE, t=1.0)]
     lateral = [Violation(KIND.LATERAL_ACCELERATION, t=1.0, value=7.0)]
     step = [Violation(KIND.STEP, t=1.0)]
-    assert severity(from_behind, rear) == (0, 0, 0, 1, 0)
-    assert severity(leader, rear) == severity(wall, rear) == (0, 0, 1, 0, 0)  # only a follower is "behind"
+    assert severity(from_behind, rear) == (0, 0, 0, 0, 1, 0)
+    assert severity(leader, rear) == severity(wall, rear) == (0, 0, 0, 1, 0, 0)  # only a follower is "behind"
     assert severity(lane, rear) < severity(from_behind, rear) < severity(wall, rear) < severity(lateral, rear)
     assert severity(lateral, rear) < severity(step, rear)
     # a static obstacle with a follower's id is not hit from behind
-    assert severity([_hit(KIND.HITS_OBSTACLE, "behind")], rear) == (0, 0, 1, 0, 0)
-    assert severity([*from_behind, *lane, *wall, *lateral, *step], rear) == (1, 1, 1, 1, 1)
+    assert severity([_hit(KIND.HITS_OBSTACLE, "behind")], rear) == (0, 0, 0, 1, 0, 0)
+    assert severity([*from_behind, *lane, *wall, *lateral, *step], rear) == (0, 1, 1, 1, 1, 1)
     for kind in (KIND.CURVATURE, KIND.ACCELERATION, KIND.SPEED, KIND.STEERING_ANGLE, KIND.STEERING_RATE):
-        assert severity([Violation(kind, t=0.0, value=1.0)], rear) == (0, 1, 0, 0, 0)
+        assert severity([Violation(kind, t=0.0, value=1.0)], rear) == (0, 0, 1, 0, 0, 0)
     for kind in (KIND.FRENET, KIND.HEADING, KIND.TURN, KIND.REAR_AXLE_SLIPS, KIND.S_DECREASES, KIND.KAPPA_D):
-        assert severity([Violation(kind, t=0.0)], rear) == (1, 0, 0, 0, 0)
+        assert severity([Violation(kind, t=0.0)], rear) == (0, 1, 0, 0, 0, 0)
+    # one that does not start at the ego is not the ego's motion: worse than any other disagreement
+    elsewhere = [Violation(KIND.START, t=0.0)]
+    assert severity(elsewhere, rear) == (1, 1, 0, 0, 0, 0)
+    assert severity([Violation(KIND.S_DECREASES, t=0.0), *lateral, *wall], rear) < severity(elsewhere, rear)
 
 
 def _hit_from_behind_when_braking() -> PlanningProblem:
@@ -313,3 +318,22 @@ def test_a_start_too_fast_for_every_bend_ahead_brakes_straight_on_within_the_lim
     np.testing.assert_allclose(np.unwrap(traj.heading), heading, atol=1e-9)
     assert traj.v[-1] < traj.v[0]
     assert KIND.LANE in {v.kind for v in result.violations}
+
+
+def test_a_car_yawed_far_off_a_tight_u_turns_leg_brakes_along_its_own_heading_from_where_it_is() -> None:
+    """A car 49° off the straight leg of a 3.2 m U-turn at 7 m/s, its lane too narrow for any path: the
+    QP holds its rear axle's offset along the reference, whose body (yawed with the reference) stands
+    1.4 m from the ego; braking straight on along its own yaw starts at the ego, its only fault that its
+    projection runs back where it nears the other leg. Ranked by the count of disagreements alone, the
+    held path came first and the answer did not start at the ego."""
+    vehicle = Vehicle(
+        length=5.1, width=1.9, max_curvature=0.18, max_deceleration=8.5, wheelbase=3.0, rear_axle_offset=1.7
+    )
+    problem = PlanningProblem(
+        u_turn(radius=3.2, leg=45.0, step=0.5), Lane(2.0, 1.0), Ego(-20.0, 0.4, 0.86, 7.0), (), vehicle
+    )
+    result = plan(problem)
+    assert result.status == "fallback" and result.trajectory is not None
+    assert result.trajectory.x[0] == pytest.approx(-20.0) and result.trajectory.y[0] == pytest.approx(0.4)
+    assert ViolationKind.START not in {v.kind for v in result.violations}
+    np.testing.assert_allclose(result.trajectory.heading, 0.86)  # straight on, no steering
