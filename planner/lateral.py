@@ -35,7 +35,14 @@ from planner.problem import Lane, PlanningProblem, Vehicle, speed_cap
 from planner.reference import FloatArray, ReferenceLine
 from planner.timing import time_for
 from planner.trajectory import Path, frenet_path
-from planner.validation import lane_overshoot, leaves_lane, outside_lane
+from planner.validation import (
+    lane_overshoot,
+    leaves_lane,
+    outside_lane,
+    return_length,
+    start_overshoot,
+    still_out,
+)
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
 from solvers.result import SolveInfo
 
@@ -356,9 +363,16 @@ class _Attempt:
 
 
 def _qp_bounds(
-    bounds: LateralBounds, d_ref: FloatArray, start: EgoFrenet, reach: float, vehicle_length: float
+    bounds: LateralBounds,
+    d_ref: FloatArray,
+    start: EgoFrenet,
+    reach: float,
+    vehicle_length: float,
+    return_length: float | None = None,
 ) -> tuple[LateralBounds, FloatArray]:
-    """The bounds handed to the QP and the reference offsets at their knots (see the module docstring)."""
+    """The bounds handed to the QP and the reference offsets at their knots (see the module docstring);
+    ``return_length`` [m]: where the ego's footprint starts outside its lane, how far it may take to be
+    back (:func:`planner.validation.return_length`), else None."""
     s, lower, upper = bounds.s, bounds.lower, bounds.upper
     if bounds.blocked is not None:  # cut before the block (the path runs on: ≥ 3 knots)
         keep = max(bounds.blocked, 3)
@@ -376,9 +390,13 @@ def _qp_bounds(
     # The ego is where it is: where the bounds near the start exclude its offset (a conservative bound
     # it is already inside, as beside an obstacle it is passing), they open to it and close again
     # linearly over one vehicle length, so that the QP can start there; the checks judge the footprint.
-    ramp = np.clip((s - start.s) / vehicle_length, 0.0, 1.0)
-    lower = np.minimum(lower, start.d + (lower - start.d) * ramp)
-    upper = np.maximum(upper, start.d + (upper - start.d) * ramp)
+    # Where the footprint starts outside its lane they close no faster than the return the checks allow
+    # (:func:`planner.validation.still_out`: a linear close asks a path that starts straight for a kink).
+    left_open = 1.0 - np.clip((s - start.s) / vehicle_length, 0.0, 1.0)
+    if return_length is not None:
+        left_open = np.maximum(left_open, still_out(s - start.s, return_length))
+    lower = np.minimum(lower, lower - (lower - start.d) * left_open)
+    upper = np.maximum(upper, upper - (upper - start.d) * left_open)
     return LateralBounds(s=s, lower=lower, upper=upper, blocked=bounds.blocked), d_ref
 
 
@@ -452,6 +470,8 @@ def _corridor(
     reach = ref.length - vehicle.front_extent - config.stop_gap
     # a lane that runs out (narrower than the vehicle) at the reference's end is its end, not a block
     road_end = bounds.blocked is not None and at[bounds.blocked] >= reach
+    outside = start_overshoot(ref, problem, corridor)
+    back = return_length(problem, outside) if outside > 0.0 else None
     eased = None
     if vehicle.max_steering_rate is not None and vehicle.wheelbase is not None:
         # the eased path's bounds (:func:`_eased`): the footprint along the reference's heading, cut where
@@ -459,8 +479,8 @@ def _corridor(
         aligned = bounded(None)
         lower, upper = np.minimum(aligned.lower, bounds.lower), np.maximum(aligned.upper, bounds.upper)
         aligned = replace(aligned, lower=lower, upper=upper, blocked=bounds.blocked)
-        eased, _ = _qp_bounds(aligned, d_ref, start, reach, vehicle.length)
-    bounds, d_ref = _qp_bounds(bounds, d_ref, start, reach, vehicle.length)
+        eased, _ = _qp_bounds(aligned, d_ref, start, reach, vehicle.length, back)
+    bounds, d_ref = _qp_bounds(bounds, d_ref, start, reach, vehicle.length, back)
     return _Corridor(bounds, d_ref, bool(road_end), corridor, boxes, eased)
 
 

@@ -7,6 +7,7 @@ ranking) read its ``kind`` and ``obstacle_id``, never the text.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -50,6 +51,9 @@ def folds_back(ref: ReferenceLine, xy: ArrayLike) -> bool:
 #: the jerk [m/s³] at which the speed check lets a vehicle that starts faster than ``max_speed`` reach
 #: full braking (:func:`fastest_braking`): the emergency jerk the fallback's braking profile uses
 EMERGENCY_JERK = DEFAULT_CONFIG.speed.emergency_jerk
+#: a vehicle that starts with its footprint outside its lane returns into it within this share of the
+#: curvature it can drive at its speed (:func:`return_length`)
+RETURN_SHARE = 0.5
 #: tolerances of the trajectory checks
 _GEOMETRY_TOL = 1e-3  # [m]
 _RATE_TOL = 1e-3  # relative, on limits
@@ -272,11 +276,57 @@ def leaves_lane(
     footprint or a point along a side (:func:`_lane_excess`) is outside the lane (``surface``, default the
     problem's lane: the road when it borrows) (by TransF-κ, beyond :data:`_GEOMETRY_TOL`). The first pose
     is a measurement: a vehicle already partly outside may not get further out until it has moved one
-    length away."""
+    length away, and then back inside as :func:`start_allowance` lets it."""
     outside = _lane_excess(ref, problem, x, y, heading, surface)
-    near_start = np.hypot(x - x[0], y - y[0]) < problem.vehicle.length
-    allowance = np.where(near_start, max(float(outside[0].max()), 0.0), 0.0)[:, None]
+    distance = np.hypot(x - x[0], y - y[0])
+    allowance = start_allowance(problem, float(outside[0].max()), distance)[:, None]
     return np.asarray(np.any(outside - allowance > _GEOMETRY_TOL, axis=1))
+
+
+def start_overshoot(ref: ReferenceLine, problem: PlanningProblem, surface: Lane | None = None) -> float:
+    """How far [m] the ego's footprint reaches outside the lane (``surface``, default the problem's lane)
+    at the start, by TransF-κ; 0 inside or within the checks' tolerance of the edge."""
+    ego = problem.ego
+    pose = (np.array([ego.x]), np.array([ego.y]), np.array([ego.heading]))
+    excess = float(_lane_excess(ref, problem, *pose, surface).max())
+    return excess if excess > _GEOMETRY_TOL else 0.0
+
+
+def return_length(problem: PlanningProblem, overshoot: float) -> float:
+    """How far [m] a vehicle whose footprint starts ``overshoot`` [m] outside its lane may drive before it
+    is back inside: the length ``L`` of a :func:`still_out` move sideways by the overshoot and the lane
+    margin it plans to keep (``options.lateral_margin``) whose largest second derivative,
+    ``(10/√3)·move/L²``, is :data:`RETURN_SHARE` of the curvature the vehicle can drive at its speed (its
+    curvature limit, and ``max_lateral_acceleration / v²``); at least one vehicle length."""
+    vehicle = problem.vehicle
+    speed_sq = max(problem.ego.speed, 0.0) ** 2
+    drivable = min(vehicle.curvature_limit, vehicle.max_lateral_acceleration / max(speed_sq, 1e-9))
+    move = max(overshoot, 0.0) + problem.options.lateral_margin
+    return max(vehicle.length, math.sqrt(10.0 / math.sqrt(3.0) * move / (RETURN_SHARE * drivable)))
+
+
+def still_out(distance: FloatArray, length: float) -> FloatArray:
+    """The share of a start's overshoot left at ``distance`` [m] of a return over ``length`` [m]: one
+    minus the smootherstep ``x³(10 − 15x + 6x²)`` of ``x = distance / length`` (no slope or curvature
+    sideways at either end: a vehicle driving straight can start on it and end on it)."""
+    x = np.clip(distance / length, 0.0, 1.0)
+    return np.asarray(1.0 - x**3 * (10.0 - 15.0 * x + 6.0 * x * x))
+
+
+def start_allowance(problem: PlanningProblem, overshoot: float, distance: FloatArray) -> FloatArray:
+    """How far [m] the footprint may reach outside its lane at ``distance`` [m] from the start when it
+    starts ``overshoot`` [m] outside: within :func:`return_length` (at least one vehicle length), the
+    overshoot and what turning back towards the lane swings the footprint's rear out (its rear extent
+    times the sine of one and a half times the return's steepest heading, ``atan(15/8 · move / L)``); 0
+    beyond. A start inside the lane (within the checks' tolerance) allows what it reaches out within one
+    vehicle length."""
+    vehicle = problem.vehicle
+    if overshoot <= _GEOMETRY_TOL:
+        return np.where(distance < vehicle.length, max(overshoot, 0.0), 0.0)
+    length = return_length(problem, overshoot)
+    steepest = math.atan(15.0 / 8.0 * (overshoot + problem.options.lateral_margin) / length)
+    swing = vehicle.rear_extent * math.sin(min(1.5 * steepest, 0.5 * math.pi))
+    return np.where(distance < length, overshoot + swing, 0.0)
 
 
 def lane_overshoot(
@@ -289,12 +339,12 @@ def lane_overshoot(
 ) -> tuple[FloatArray, FloatArray]:
     """Per pose (the footprint's centre ``(x, y)`` [m], yaw ``heading`` [rad]), how far [m] the footprint
     reaches beyond the lane's right edge and beyond its left edge (by TransF-κ), as :func:`leaves_lane`
-    judges it: less what the first pose already reaches out, within one vehicle length of it, and 0 where
-    within the checks' tolerance; a pose leaves the lane exactly where one of the two is positive."""
+    judges it: less what the first pose already reaches out as :func:`start_allowance` lets it, and 0
+    where within the checks' tolerance; a pose leaves the lane exactly where one of the two is positive."""
     right_points, left_points = _side_excess(ref, problem, x, y, heading, surface)
     right, left = right_points.max(axis=1), left_points.max(axis=1)
-    near_start = np.hypot(x - x[0], y - y[0]) < problem.vehicle.length
-    allowance = np.where(near_start, max(float(right[0]), float(left[0]), 0.0), 0.0)
+    distance = np.hypot(x - x[0], y - y[0])
+    allowance = start_allowance(problem, max(float(right[0]), float(left[0])), distance)
     right, left = right - allowance, left - allowance
     return np.where(right > _GEOMETRY_TOL, right, 0.0), np.where(left > _GEOMETRY_TOL, left, 0.0)
 

@@ -154,3 +154,23 @@ def test_an_ego_faster_than_its_max_speed_brakes_at_once(
     assert plan_problems(request, answer, [status]) == []
     accelerations = [p["a"] for p in answer["trajectory"]]
     assert accelerations[0] == pytest.approx(measured) and min(accelerations[:6]) <= -7.9
+
+
+@pytest.mark.parametrize("car", [{}, {"wheelbase": 2.7, "rear_axle_offset": 1.35}])
+@pytest.mark.parametrize("speed", [0.0, 3.0, 8.0])
+@pytest.mark.parametrize("y", [1.5, 3.0, 6.0])
+def test_an_ego_that_starts_outside_its_lane_returns_into_it(
+    client: TestClient, car: dict[str, float], speed: float, y: float
+) -> None:
+    """An ego 0.65–4.15 m outside its lane (no road given) on an empty straight road drives back into it:
+    ``ok``, passing the independent checks, its footprint inside the lane beyond the return length. The
+    bounds closed linearly over one vehicle length, which a path that starts straight cannot follow, and
+    the checks wanted the footprint back within that length: every answer was a fallback standing still
+    outside the lane."""
+    request = copy.deepcopy(ROADS["straight"])
+    request["vehicle"] = dict(car)
+    request["ego"].update(x=20.0, y=y, speed=speed)
+    answer = client.post("/v1/plan", json=request).json()
+    assert answer["status"] == "ok", answer["message"]
+    assert plan_problems(request, answer, ["ok"]) == []
+    assert abs(answer["trajectory"][-1]["d"]) < 0.3 and answer["trajectory"][-1]["v"] > 5.0

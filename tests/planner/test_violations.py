@@ -33,7 +33,10 @@ from planner.validation import (
     fastest_braking,
     lane_overshoot,
     leaves_lane,
+    return_length,
     speed_violations,
+    start_allowance,
+    still_out,
     trajectory_violations,
 )
 from solvers.speed_problem import integrate_jerk
@@ -378,3 +381,26 @@ def test_an_ego_faster_than_max_speed_may_brake_with_the_emergency_jerk_but_neve
     braking = replace(problem, ego=replace(ego, acceleration=-8.0))
     np.testing.assert_allclose(fastest_braking(braking, np.array([0.0, 1.0])), [18.0, 10.0])
     assert speed_violations(braking, _braking_from(18.0, -8.0, EMERGENCY_JERK, 4.0)) == []
+
+
+def test_a_footprint_that_starts_outside_its_lane_may_stay_out_only_while_it_returns() -> None:
+    """Inside at the start: what the first pose reaches out is allowed within one vehicle length, as
+    before. Outside by 1.2 m: within the return length (a smootherstep move at half the curvature the
+    vehicle can drive at its speed, longer the faster and the farther out) the overshoot and the swing
+    of its rear as it turns back; nothing beyond."""
+    traj = _along(STRAIGHT)
+    inside = _problem(STRAIGHT, traj, length=4.5)
+    distance = np.array([0.0, 4.4, 4.6, 50.0])
+    np.testing.assert_allclose(start_allowance(inside, 0.0, distance), 0.0)
+    np.testing.assert_allclose(start_allowance(inside, 1e-3, distance), [1e-3, 1e-3, 0.0, 0.0])  # as before
+    standing = replace(inside, ego=replace(inside.ego, speed=0.0))
+    move, curvature = 1.2 + inside.options.lateral_margin, standing.vehicle.curvature_limit
+    assert return_length(standing, 1.2) == pytest.approx(np.sqrt(10 / np.sqrt(3) * move / (0.5 * curvature)))
+    far = replace(inside, ego=replace(inside.ego, speed=10.0))
+    assert return_length(inside, 0.0) >= 4.5 and return_length(far, 1.2) > return_length(inside, 1.2)
+    assert return_length(inside, 3.0) > return_length(inside, 1.2)
+    length = return_length(inside, 1.2)
+    allowed = start_allowance(inside, 1.2, np.array([0.0, 0.5 * length, 0.99 * length, 1.01 * length]))
+    assert allowed[0] == allowed[1] == allowed[2] > 1.2 and allowed[3] == 0.0
+    assert allowed[0] - 1.2 < 0.5 * inside.vehicle.length  # the swing: the rear half turned by < 30°
+    np.testing.assert_allclose(still_out(np.array([0.0, 0.5, 1.0, 2.0]), 1.0), [1.0, 0.5, 0.0, 0.0])
