@@ -275,8 +275,8 @@ def leaves_lane(
     """Per pose (the footprint's centre ``(x, y)`` [m], yaw ``heading`` [rad]), whether a corner of the
     footprint or a point along a side (:func:`_lane_excess`) is outside the lane (``surface``, default the
     problem's lane: the road when it borrows) (by TransF-κ, beyond :data:`_GEOMETRY_TOL`). The first pose
-    is a measurement: a vehicle already partly outside may not get further out until it has moved one
-    length away, and then back inside as :func:`start_allowance` lets it."""
+    is a measurement: what it reaches out is allowed near the start as :func:`start_allowance` says (a
+    vehicle partly outside may stay out by that, and the swing of turning back, while it returns)."""
     outside = _lane_excess(ref, problem, x, y, heading, surface)
     distance = np.hypot(x - x[0], y - y[0])
     allowance = start_allowance(problem, float(outside[0].max()), distance)[:, None]
