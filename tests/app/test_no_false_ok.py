@@ -162,7 +162,7 @@ def test_an_ego_faster_than_its_max_speed_brakes_at_once(
 def test_an_ego_that_starts_outside_its_lane_returns_into_it(
     client: TestClient, car: dict[str, float], speed: float, y: float
 ) -> None:
-    """An ego 0.65–4.15 m outside its lane (no road given) on an empty straight road drives back into it:
+    """An ego 0.65–5.15 m outside its lane (no road given) on an empty straight road drives back into it:
     ``ok``, passing the independent checks, its footprint inside the lane beyond the return length. The
     bounds closed linearly over one vehicle length, which a path that starts straight cannot follow, and
     the checks wanted the footprint back within that length: every answer was a fallback standing still

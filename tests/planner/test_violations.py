@@ -402,5 +402,5 @@ def test_a_footprint_that_starts_outside_its_lane_may_stay_out_only_while_it_ret
     length = return_length(inside, 1.2)
     allowed = start_allowance(inside, 1.2, np.array([0.0, 0.5 * length, 0.99 * length, 1.01 * length]))
     assert allowed[0] == allowed[1] == allowed[2] > 1.2 and allowed[3] == 0.0
-    assert allowed[0] - 1.2 < 0.5 * inside.vehicle.length  # the swing: the rear half turned by < 30°
+    assert allowed[0] - 1.2 < 0.5 * inside.vehicle.length  # the swing: less than the rear half turned across
     np.testing.assert_allclose(still_out(np.array([0.0, 0.5, 1.0, 2.0]), 1.0), [1.0, 0.5, 0.0, 0.0])
