@@ -403,12 +403,15 @@ def _qp_bounds(
 @dataclass(frozen=True)
 class _Knots:
     """What the corridors at one stage's knots share whatever their lane margin: the side each obstacle
-    is passed on (``left_of``), the candidate's heading error [rad] per knot and the bounds'
-    :class:`planner.bounds.KnotGeometry` (computed once for the corridor with its margin and without)."""
+    is passed on (``left_of``), the candidate's heading error [rad] per knot, the bounds'
+    :class:`planner.bounds.KnotGeometry` (computed once for the corridor with its margin and without) and,
+    where the ego's footprint starts outside the corridor, how far it may take to be back
+    (``back`` [m], :func:`planner.validation.return_length`; else None)."""
 
     left_of: NDArray[np.bool_]
     heading_error: FloatArray
     geometry: KnotGeometry
+    back: float | None
 
 
 def _knots(
@@ -425,10 +428,12 @@ def _knots(
     obstacles in ``sides`` passed on the side a decision fixed, the others on the candidate's."""
     vehicle, options = problem.vehicle, problem.options
     lane = lane_bounds(ref, corridor, at, half_width=0.5 * vehicle.width, margin=options.lateral_margin)
+    outside = start_overshoot(ref, problem, corridor)
     return _Knots(
         left_of=_sides(boxes, pass_left(boxes, at, d_ref, lane.lower, lane.upper), sides),
         heading_error=smoothed_slope(d_ref, at, config.lateral.heading_window),
         geometry=knot_geometry(ref, corridor, at, vehicle),
+        back=return_length(problem, outside) if outside > 0.0 else None,
     )
 
 
@@ -470,8 +475,6 @@ def _corridor(
     reach = ref.length - vehicle.front_extent - config.stop_gap
     # a lane that runs out (narrower than the vehicle) at the reference's end is its end, not a block
     road_end = bounds.blocked is not None and at[bounds.blocked] >= reach
-    outside = start_overshoot(ref, problem, corridor)
-    back = return_length(problem, outside) if outside > 0.0 else None
     eased = None
     if vehicle.max_steering_rate is not None and vehicle.wheelbase is not None:
         # the eased path's bounds (:func:`_eased`): the footprint along the reference's heading, cut where
@@ -479,8 +482,8 @@ def _corridor(
         aligned = bounded(None)
         lower, upper = np.minimum(aligned.lower, bounds.lower), np.maximum(aligned.upper, bounds.upper)
         aligned = replace(aligned, lower=lower, upper=upper, blocked=bounds.blocked)
-        eased, _ = _qp_bounds(aligned, d_ref, start, reach, vehicle.length, back)
-    bounds, d_ref = _qp_bounds(bounds, d_ref, start, reach, vehicle.length, back)
+        eased, _ = _qp_bounds(aligned, d_ref, start, reach, vehicle.length, shared.back)
+    bounds, d_ref = _qp_bounds(bounds, d_ref, start, reach, vehicle.length, shared.back)
     return _Corridor(bounds, d_ref, bool(road_end), corridor, boxes, eased)
 
 

@@ -21,12 +21,12 @@ import json
 import re
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
 import shapely
 from scenario_roads import Road, arc_piece, straight_piece
+from spies import counted_calls
 
 from planner.bounds import LateralBounds, knot_geometry, lateral_bounds
 from planner.collision import frenet_boxes
@@ -479,14 +479,7 @@ def test_past_its_budget_the_lateral_stage_skips_the_solves_that_only_improve_it
     fallback instead of solving on. Without a budget (``time_left()`` None) they all run."""
     base = demo_problem()
     problem = replace(base, vehicle=replace(base.vehicle, max_curvature=0.01))  # its U-turn is too tight
-    solves: list[int] = []
-    solve = LateralQPSolver.solve
-
-    def counted(self: LateralQPSolver, *args: Any, **kwargs: Any) -> Any:
-        solves.append(1)
-        return solve(self, *args, **kwargs)
-
-    monkeypatch.setattr(LateralQPSolver, "solve", counted)
+    solves = counted_calls(monkeypatch, LateralQPSolver, "solve")
     free = plan(problem)
     unbudgeted = len(solves)
     solves.clear()

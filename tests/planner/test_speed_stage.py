@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 from scenario_roads import Road, arc_piece, follow_prediction, straight_piece
+from spies import counted_calls
 from traffic import car, violations
 
 from planner import drive
@@ -323,14 +324,7 @@ def test_past_its_budget_the_speed_stage_does_not_solve_again_with_the_emergency
     profile is solved again with the emergency jerk — only while the budget leaves what the first solve
     took (past it, the plan falls back anyway). Without a budget both solves run."""
     problem = two_lane_problem(hairpin(15.0, leg=30.0), speed=18.0, road=False)
-    solves: list[int] = []
-    solve = SpeedSolver.solve
-
-    def counted(self: SpeedSolver, *args: Any, **kwargs: Any) -> Any:
-        solves.append(1)
-        return solve(self, *args, **kwargs)
-
-    monkeypatch.setattr(SpeedSolver, "solve", counted)
+    solves = counted_calls(monkeypatch, SpeedSolver, "solve")
     plan(problem)
     assert len(solves) == 2
     solves.clear()
