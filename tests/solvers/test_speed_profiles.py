@@ -4,6 +4,7 @@ the jerk limit."""
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -86,6 +87,50 @@ def test_limited_profile_from_a_state_that_cannot_keep_the_limit_brakes_fully() 
     np.testing.assert_allclose(jerk[:10], braking_profile(problem)[:10])
 
 
+@pytest.mark.parametrize(
+    ("v0", "v_keep", "limit_s", "limit_v", "settled"),
+    [
+        (10.0, 15.0, [0.0, 1000.0], [12.0, 12.0], lambda s: s > 30.0),  # a limit below the kept speed
+        (20.03, 21.0, [0.0, 1000.0], [20.0, 20.0], lambda s: s > 30.0),  # starting just above it
+        (15.0, 15.0, *_dip(30.0, 6.0, 60.0, 300.0), lambda s: (s > 75.0) & (s < 300.0)),  # a long dip
+    ],
+)
+def test_limited_profile_holds_a_limit_below_the_kept_speed_without_chattering(
+    v0: float, v_keep: float, limit_s: list[float], limit_v: list[float], settled: Any
+) -> None:
+    """Where the limit is below ``v_keep`` the profile drives at the limit, its acceleration settled at 0:
+    steering towards ``v_keep`` past the limit and braking back swung it by ±3 m/s² every few steps."""
+    problem = make_problem(
+        v0=v0, limit_s=limit_s, limit_v=limit_v, jerk_max=30.0, a_min=-6.0, a_max=2.5, steps=160
+    )
+    s, v, a = integrate_jerk(problem.dt, 0.0, v0, 0.0, limited_profile(problem, v_keep))
+    there = settled(s)
+    assert there.sum() > 10
+    limit = np.interp(s, problem.limit_s, problem.limit_v)
+    np.testing.assert_allclose(v[there], limit[there], atol=1e-6)
+    np.testing.assert_allclose(a[there], 0.0, atol=1e-6)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    v=st.floats(0.0, 30.0), a=st.floats(-6.0, 6.0), share=st.floats(-0.999, 0.999), dt=st.floats(0.02, 0.3)
+)
+def test_the_steer_lands_on_the_kept_speed_on_the_grid(v: float, a: float, share: float, dt: float) -> None:
+    """The steer inverts the grid's release: for the speed where a step of jerk ``j`` (within the limit)
+    and then the fastest release of the acceleration on the grid (full-jerk steps and a partial one) end,
+    it steers with that ``j``."""
+    from solvers.speed_profiles import _steer
+
+    jmax = 30.0
+    j = share * jmax
+    u = a + j * dt
+    full = int(abs(u) // (jmax * dt))
+    release = [-np.sign(u) * jmax] * full + [-(u - np.sign(u) * jmax * dt * full) / dt]
+    _, speed, accel = integrate_jerk(dt, 0.0, v + (a + u) * dt / 2, u, np.array(release))
+    assert accel[-1] == pytest.approx(0.0, abs=1e-9)
+    assert _steer(v, a, float(speed[-1]), dt, jmax, -1e9, 1e9) == pytest.approx(j, abs=1e-6)
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     v0=st.floats(0.0, 30.0),
@@ -148,8 +193,12 @@ def _limited_reference(problem: SpeedProblem, v_keep: float) -> np.ndarray:
     def after(s: float, v: float, a: float, j: float) -> tuple[float, float, float]:
         return s + v * dt + a * dt**2 / 2 + j * dt**3 / 6, v + a * dt + j * dt**2 / 2, a + j * dt
 
+    ramp = -problem.a_min / jmax
+
     for k in range(n):
-        j = _steer(v, a, v_keep, dt, jmax, min(problem.a_min, a), max(problem.a_max, a))
+        ahead = s + max(v, 0.0) * (ramp / 2.0 + dt)
+        target = min(v_keep, envelope.least(s, s + max(v, 0.0) * dt)[0], envelope.braking_speed(ahead))
+        j = _steer(v, a, target, dt, jmax, min(problem.a_min, a), max(problem.a_max, a))
         nxt = after(s, v, a, j)
         releasable = nxt[1] >= 0.0 and _spare_speed(nxt[1], nxt[2], dt, jmax) >= 0.0
         if releasable and (envelope.keeps(*nxt) or _brakes_within(problem, *nxt)):
@@ -194,6 +243,26 @@ def test_braking_profile_is_its_own_prefix(v0: float, a0: float, steps: int) -> 
     :func:`limited_profile` follow a stop step by step)."""
     problem = make_problem(v0=v0, a0=a0, jerk_max=30.0, a_min=-6.0, a_max=2.5, steps=120)
     assert np.array_equal(braking_profile(replace(problem, steps=steps)), braking_profile(problem)[:steps])
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    limit_v=st.lists(st.floats(0.5, 30.0), min_size=2, max_size=12),
+    spacing=st.floats(0.5, 20.0),
+    s=st.floats(0.0, 250.0),
+)
+def test_braking_from_the_braking_speed_keeps_the_limit_ahead(
+    limit_v: list[float], spacing: float, s: float
+) -> None:
+    """From :meth:`_Envelope.braking_speed` at ``s``, braking at ``a_min`` never goes faster than the limit
+    anywhere ahead (checked on a 1 cm grid)."""
+    problem = make_problem(
+        limit_s=spacing * np.arange(len(limit_v)), limit_v=limit_v, jerk_max=30.0, a_min=-6.0, a_max=2.5
+    )
+    v = _Envelope.of(problem).braking_speed(s)
+    ahead = s + np.arange(0.0, 300.0, 0.01)
+    speed = np.sqrt(np.maximum(v * v - 12.0 * (ahead - s), 0.0))
+    assert np.all(speed <= np.interp(ahead, problem.limit_s, problem.limit_v) + 1e-9)
 
 
 def _keeps_reference(problem: SpeedProblem, s: float, v: float, a: float) -> bool:
