@@ -401,13 +401,14 @@ def keep_speed(
     """The acceleration released within the emergency jerk and the speed kept along ``path`` (the
     fallback's alternative when braking is hit from behind), within the path's limit below the vehicle's
     max speed (:func:`speed_limit`): where keeping the speed would break it, the speed after the release
-    is driven within it (:func:`solvers.speed_profiles.limited_profile`). Analytic."""
+    (at most the max speed: an ego above it drives at it rather than swinging about it) is driven within
+    it (:func:`solvers.speed_profiles.limited_profile`). Analytic."""
     limit = speed_limit(path, problem, config, cap=problem.vehicle.max_speed)
     sp = _speed_problem(path, problem, steps, dt, config.speed.emergency_jerk, limit, 0.0)
     jerk = cruise_profile(sp)
     s, v, _ = integrate_jerk(dt, 0.0, sp.v0, sp.a0, jerk)
     if np.any(v > np.interp(s, sp.limit_s, sp.limit_v) + _LIMIT_TOL):
-        jerk = limited_profile(sp, float(v[-1]))
+        jerk = limited_profile(sp, min(float(v[-1]), problem.vehicle.max_speed))
     return _analytic(ProfileKind.KEEP_SPEED, sp, jerk)
 
 

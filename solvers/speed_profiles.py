@@ -189,37 +189,18 @@ class _Envelope:
         energy = np.minimum.accumulate((lowest**2 + 2.0 * b * s)[::-1])[::-1]
         return cls(problem, tuple(energy.tolist()), tuple(s.tolist()), tuple(v.tolist()))
 
-    def least(self, s: float, reach: float) -> tuple[float, float]:
-        """The limit's least over ``[s, reach]`` [m] (``s ≤ reach``) and its value at ``reach`` [m/s]."""
-        p = self.problem
-        knots_v = self.knots_v
-        lo, hi = bisect.bisect_right(self.knots_s, s), bisect.bisect_right(self.knots_s, reach)
-        end_s, end_reach = np.interp((s, reach), p.limit_s, p.limit_v).tolist()
-        return min(end_s, end_reach, min(knots_v[lo:hi]) if hi > lo else math.inf), end_reach
-
-    def braking_speed(self, s: float) -> float:
-        """The speed [m/s] at ``s`` [m] from which braking at ``a_min`` (no ramp) keeps the limit ahead: at
-        most the limit's least over the rest of the segment holding ``s``, and on each later segment its
-        least (``energy``)."""
-        knots_s, b = self.knots_s, -self.problem.a_min
-        i = bisect.bisect_right(knots_s, s)
-        if i >= len(knots_s):  # beyond the last knot the limit holds its last value
-            return self.knots_v[-1]
-        here = min(float(np.interp(s, knots_s, self.knots_v)), self.knots_v[i])
-        later = self.energy[i] - 2.0 * b * s  # the segments from knot i on (energy[i] starts there)
-        return math.sqrt(max(min(here * here, later), 0.0))
-
     def keeps(self, s: float, v: float, a: float) -> bool:
         """Whether full braking from ``(s, v, a)`` surely keeps the limit (False: perhaps not)."""
         p = self.problem
         ramp = max(a - p.a_min, 0.0) / p.jerk_max + p.dt
         peak = v + max(a, 0.0) * ramp
         reach = s + max(peak, 0.0) * ramp
-        least, end_reach = self.least(s, reach)
+        knots_v = self.knots_v
+        lo, hi = bisect.bisect_right(self.knots_s, s), bisect.bisect_right(self.knots_s, reach)
+        end_s, end_reach = np.interp((s, reach), p.limit_s, p.limit_v).tolist()
+        least = min(end_s, end_reach, min(knots_v[lo:hi]) if hi > lo else math.inf)
         if peak > least + _LIMIT_TOL:
             return False
-        knots_v = self.knots_v
-        hi = bisect.bisect_right(self.knots_s, reach)
         ahead = min(end_reach, knots_v[min(hi, len(knots_v) - 1)]) ** 2 + 2.0 * -p.a_min * reach
         beyond = self.energy[hi] if hi < len(self.energy) else math.inf
         return peak**2 + 2.0 * -p.a_min * reach <= min(ahead, beyond) + _LIMIT_TOL
@@ -228,18 +209,19 @@ class _Envelope:
 def limited_profile(problem: SpeedProblem, v_keep: float) -> FloatArray:
     """Jerks that drive at ``v_keep`` [m/s] within the path's limit ``v_lim`` (``limit_s``, ``limit_v``).
 
-    Each step takes the jerk that steers towards ``v_keep`` (:func:`_steer`; towards the limit over the
-    step, or the speed from which braking keeps the limit ahead, :meth:`_Envelope.braking_speed`, where
-    that is lower) when full braking from the state after it still keeps ``v ≤ v_lim`` everywhere ahead
-    until it stops (:func:`_brakes_within`, after the quick sufficient test of :class:`_Envelope`);
+    Each step takes the jerk that steers towards ``v_keep`` (:func:`_steer`) when full braking from the
+    state after it still keeps ``v ≤ v_lim`` everywhere ahead until it stops (:func:`_brakes_within`, after
+    the quick sufficient test of :class:`_Envelope`);
     otherwise the next step of full braking (:func:`braking_profile`) from the state before it, whose own
     braking was checked the step before. So the limit is kept at the knots wherever full braking from the
-    initial state keeps it, and the profile slows before a dip in the limit about as late as it must
-    (half a braking ramp sooner), drives at the limit in it without the acceleration swinging, and speeds
-    up again after it. From an initial state whose braking cannot keep the limit it brakes fully
-    until it can (best effort). Every step keeps ``|j| ≤ j_max``, the acceleration box and the speed
-    floor (a step towards ``v_keep`` is taken only if releasing the acceleration after it cannot end
-    below standstill); ``s_stop``, ``s_upper`` and ``s_lower`` are ignored.
+    initial state keeps it, and the profile slows before a dip in the limit only as late as it must and
+    speeds up again after it: time-optimal where the limit binds, at the price of an acceleration that
+    swings between speeding up and braking fully while ``v_keep`` lies above the limit (a caller that wants
+    to drive at the limit passes a ``v_keep`` within it). From an initial state whose braking cannot keep
+    the limit it brakes fully until it can (best effort). Every step keeps ``|j| ≤ j_max``, the
+    acceleration box and the speed floor (a step towards ``v_keep`` is taken only if releasing the
+    acceleration after it cannot end below standstill); ``s_stop``, ``s_upper`` and ``s_lower`` are
+    ignored.
     """
     dt, n, jmax = problem.dt, problem.steps, problem.jerk_max
     a_lo, a_hi = problem.a_min, problem.a_max
@@ -247,18 +229,12 @@ def limited_profile(problem: SpeedProblem, v_keep: float) -> FloatArray:
     s, v, a = problem.s0, problem.v0, problem.a0
     brake: Iterator[float] | None = None  # the rest of the full stop being followed, if any
     envelope = _Envelope.of(problem)
-    ramp = -a_lo / jmax  # [s] from a = 0 to full braking
 
     def after(s: float, v: float, a: float, j: float) -> tuple[float, float, float]:
         return s + v * dt + a * dt**2 / 2 + j * dt**3 / 6, v + a * dt + j * dt**2 / 2, a + j * dt
 
     for k in range(n):
-        # towards v_keep, or lower: the limit over the step, and the speed from which braking keeps the
-        # limit ahead (begun half a ramp later, as full braking from a = 0 about is). A step past either
-        # would be undone by the braking below, the acceleration chattering between the two.
-        ahead = s + max(v, 0.0) * (ramp / 2.0 + dt)
-        target = min(v_keep, envelope.least(s, s + max(v, 0.0) * dt)[0], envelope.braking_speed(ahead))
-        j = _steer(v, a, target, dt, jmax, min(a_lo, a), max(a_hi, a))
+        j = _steer(v, a, v_keep, dt, jmax, min(a_lo, a), max(a_hi, a))
         nxt = after(s, v, a, j)
         releasable = nxt[1] >= 0.0 and _spare_speed(nxt[1], nxt[2], dt, jmax) >= 0.0
         if releasable and (envelope.keeps(*nxt) or _brakes_within(problem, *nxt)):

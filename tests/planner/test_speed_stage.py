@@ -196,6 +196,19 @@ def test_keeping_the_speed_slows_for_a_curve_ahead_and_speeds_up_after_it() -> N
     np.testing.assert_allclose(straight_on.v, 14.0)  # nothing to slow for: the speed kept
 
 
+def test_keeping_the_speed_above_the_max_speed_settles_at_it() -> None:
+    """An ego 0.03 m/s above the vehicle's max speed (20 m/s), measured speeding up: keeping the speed
+    drives at the max speed, the acceleration settled, instead of steering towards its own speed past the
+    limit and braking back every few steps (±3 m/s² for the whole horizon)."""
+    problem = PlanningProblem(ROAD, Lane(3.5, 3.5), Ego(10.0, 0.0, 0.0, 20.03, acceleration=0.5))
+    ref = build_reference(ROAD)
+    s = np.linspace(10.0, 250.0, 481)
+    profile = keep_speed(frenet_path(ref, s, 0.0 * s, 0.0 * s, 0.0 * s), problem, 80, 0.1)
+    assert np.all(profile.v <= 20.03 + 0.5**2 / (2 * DEFAULT_CONFIG.speed.emergency_jerk) + 1e-9)
+    np.testing.assert_allclose(profile.v[20:], 20.0, atol=1e-6)
+    np.testing.assert_allclose(profile.a[20:], 0.0, atol=1e-6)
+
+
 def test_the_paths_reach_the_speed_limit_only_with_a_vehicle_behind() -> None:
     """Above the target the profile speeds up only to keep ahead of a vehicle from behind: only then must
     the candidates' paths be long enough for the speed limit (longer paths spread their points thinner)."""

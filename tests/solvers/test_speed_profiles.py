@@ -4,7 +4,6 @@ the jerk limit."""
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
 import pytest
@@ -87,28 +86,18 @@ def test_limited_profile_from_a_state_that_cannot_keep_the_limit_brakes_fully() 
     np.testing.assert_allclose(jerk[:10], braking_profile(problem)[:10])
 
 
-@pytest.mark.parametrize(
-    ("v0", "v_keep", "limit_s", "limit_v", "settled"),
-    [
-        (10.0, 15.0, [0.0, 1000.0], [12.0, 12.0], lambda s: s > 30.0),  # a limit below the kept speed
-        (20.03, 21.0, [0.0, 1000.0], [20.0, 20.0], lambda s: s > 30.0),  # starting just above it
-        (15.0, 15.0, *_dip(30.0, 6.0, 60.0, 300.0), lambda s: (s > 75.0) & (s < 300.0)),  # a long dip
-    ],
-)
-def test_limited_profile_holds_a_limit_below_the_kept_speed_without_chattering(
-    v0: float, v_keep: float, limit_s: list[float], limit_v: list[float], settled: Any
-) -> None:
-    """Where the limit is below ``v_keep`` the profile drives at the limit, its acceleration settled at 0:
-    steering towards ``v_keep`` past the limit and braking back swung it by ±3 m/s² every few steps."""
+@pytest.mark.parametrize(("v0", "limit"), [(10.0, 12.0), (20.03, 20.0), (20.0, 20.0), (3.0, 2.5)])
+def test_limited_profile_settles_at_a_kept_speed_the_limit_allows(v0: float, limit: float) -> None:
+    """Towards ``v_keep`` at the limit the speed settles on it, the acceleration at 0 (the steer's release
+    taken as continuous overshot it on the grid; the braking that undid that swung the acceleration by a
+    few m/s² every few steps for the rest of the horizon)."""
     problem = make_problem(
-        v0=v0, limit_s=limit_s, limit_v=limit_v, jerk_max=30.0, a_min=-6.0, a_max=2.5, steps=160
+        v0=v0, limit_s=[0.0, 1000.0], limit_v=[limit, limit], jerk_max=30.0, a_min=-6.0, a_max=2.5
     )
-    s, v, a = integrate_jerk(problem.dt, 0.0, v0, 0.0, limited_profile(problem, v_keep))
-    there = settled(s)
-    assert there.sum() > 10
-    limit = np.interp(s, problem.limit_s, problem.limit_v)
-    np.testing.assert_allclose(v[there], limit[there], atol=1e-6)
-    np.testing.assert_allclose(a[there], 0.0, atol=1e-6)
+    _, v, a = integrate_jerk(problem.dt, 0.0, v0, 0.0, limited_profile(problem, limit))
+    assert np.all(v <= max(v0, limit) + 1e-6)  # a start above the limit brakes down to it
+    np.testing.assert_allclose(v[20:], limit, atol=1e-6)
+    np.testing.assert_allclose(a[20:], 0.0, atol=1e-6)
 
 
 @settings(max_examples=200, deadline=None)
@@ -193,12 +182,8 @@ def _limited_reference(problem: SpeedProblem, v_keep: float) -> np.ndarray:
     def after(s: float, v: float, a: float, j: float) -> tuple[float, float, float]:
         return s + v * dt + a * dt**2 / 2 + j * dt**3 / 6, v + a * dt + j * dt**2 / 2, a + j * dt
 
-    ramp = -problem.a_min / jmax
-
     for k in range(n):
-        ahead = s + max(v, 0.0) * (ramp / 2.0 + dt)
-        target = min(v_keep, envelope.least(s, s + max(v, 0.0) * dt)[0], envelope.braking_speed(ahead))
-        j = _steer(v, a, target, dt, jmax, min(problem.a_min, a), max(problem.a_max, a))
+        j = _steer(v, a, v_keep, dt, jmax, min(problem.a_min, a), max(problem.a_max, a))
         nxt = after(s, v, a, j)
         releasable = nxt[1] >= 0.0 and _spare_speed(nxt[1], nxt[2], dt, jmax) >= 0.0
         if releasable and (envelope.keeps(*nxt) or _brakes_within(problem, *nxt)):
@@ -243,26 +228,6 @@ def test_braking_profile_is_its_own_prefix(v0: float, a0: float, steps: int) -> 
     :func:`limited_profile` follow a stop step by step)."""
     problem = make_problem(v0=v0, a0=a0, jerk_max=30.0, a_min=-6.0, a_max=2.5, steps=120)
     assert np.array_equal(braking_profile(replace(problem, steps=steps)), braking_profile(problem)[:steps])
-
-
-@settings(max_examples=200, deadline=None)
-@given(
-    limit_v=st.lists(st.floats(0.5, 30.0), min_size=2, max_size=12),
-    spacing=st.floats(0.5, 20.0),
-    s=st.floats(0.0, 250.0),
-)
-def test_braking_from_the_braking_speed_keeps_the_limit_ahead(
-    limit_v: list[float], spacing: float, s: float
-) -> None:
-    """From :meth:`_Envelope.braking_speed` at ``s``, braking at ``a_min`` never goes faster than the limit
-    anywhere ahead (checked on a 1 cm grid)."""
-    problem = make_problem(
-        limit_s=spacing * np.arange(len(limit_v)), limit_v=limit_v, jerk_max=30.0, a_min=-6.0, a_max=2.5
-    )
-    v = _Envelope.of(problem).braking_speed(s)
-    ahead = s + np.arange(0.0, 300.0, 0.01)
-    speed = np.sqrt(np.maximum(v * v - 12.0 * (ahead - s), 0.0))
-    assert np.all(speed <= np.interp(ahead, problem.limit_s, problem.limit_v) + 1e-9)
 
 
 def _keeps_reference(problem: SpeedProblem, s: float, v: float, a: float) -> bool:
