@@ -137,8 +137,12 @@ def _steer(v: float, a: float, v_keep: float, dt: float, jmax: float, a_lo: floa
     """
     e = v_keep - v - 0.5 * a * dt
     q = jmax * dt * dt
-    n = math.floor((math.sqrt(1.0 + 8.0 * abs(e) / q) - 1.0) / 2.0) if q > 0.0 else 0
-    u = math.copysign((abs(e) + q * n * (n + 1) / 2.0) / (dt * (n + 1)), e)
+    ratio = 8.0 * abs(e) / q if q > 0.0 else 0.0
+    if math.isfinite(ratio):
+        n = math.floor((math.sqrt(1.0 + ratio) - 1.0) / 2.0)
+        u = math.copysign((abs(e) + q * n * (n + 1) / 2.0) / (dt * (n + 1)), e)
+    else:  # a gap no release on the grid spans (an extreme v_keep): as far as the limits allow
+        u = math.copysign(math.inf, e)
     u = min(max(u, a_lo), a_hi)
     return min(max((u - a) / dt, -jmax), jmax)
 

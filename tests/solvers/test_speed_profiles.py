@@ -79,6 +79,16 @@ def test_limited_profile_slows_for_a_dip_as_late_as_it_must_and_speeds_up_after_
     assert v[-1] == pytest.approx(15.0, abs=1e-3) and s[-1] > 76.0  # back at the speed after it
 
 
+def test_the_steer_towards_an_extreme_speed_takes_the_jerk_limit() -> None:
+    """A ``v_keep`` no release on the grid reaches (an extreme vehicle's cap, ±∞) steers as hard as the
+    jerk allows, not into an overflow."""
+    from solvers.speed_profiles import _steer
+
+    # up to a_max = 2.5 within the step (j = 25); down, the jerk limit (30) binds before a_min = −6
+    for v_keep, jerk in ((np.inf, 25.0), (1e308, 25.0), (-np.inf, -30.0), (-1e308, -30.0)):
+        assert _steer(10.0, 0.0, v_keep, 0.1, 30.0, -6.0, 2.5) == pytest.approx(jerk)
+
+
 def test_limited_profile_from_a_state_that_cannot_keep_the_limit_brakes_fully() -> None:
     limit_s, limit_v = _dip(30.0, 5.0, 10.0, 40.0)  # 20 m/s, 10 m before 5 m/s: out of reach
     problem = make_problem(v0=20.0, limit_s=limit_s, limit_v=limit_v, jerk_max=30.0, a_min=-6.0)
