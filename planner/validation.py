@@ -301,8 +301,14 @@ def return_length(problem: PlanningProblem, overshoot: float) -> float:
     vehicle = problem.vehicle
     speed_sq = max(problem.ego.speed, 0.0) ** 2
     drivable = min(vehicle.curvature_limit, vehicle.max_lateral_acceleration / max(speed_sq, 1e-9))
-    move = max(overshoot, 0.0) + problem.options.lateral_margin
+    move = _return_move(problem, overshoot)
     return max(vehicle.length, math.sqrt(10.0 / math.sqrt(3.0) * move / (RETURN_SHARE * drivable)))
+
+
+def _return_move(problem: PlanningProblem, overshoot: float) -> float:
+    """How far [m] a return moves the footprint sideways: the start's ``overshoot`` [m] and the lane
+    margin it plans to keep."""
+    return max(overshoot, 0.0) + problem.options.lateral_margin
 
 
 def still_out(distance: FloatArray, length: float) -> FloatArray:
@@ -324,7 +330,7 @@ def start_allowance(problem: PlanningProblem, overshoot: float, distance: FloatA
     if overshoot <= _GEOMETRY_TOL:
         return np.where(distance < vehicle.length, max(overshoot, 0.0), 0.0)
     length = return_length(problem, overshoot)
-    steepest = math.atan(15.0 / 8.0 * (overshoot + problem.options.lateral_margin) / length)
+    steepest = math.atan(15.0 / 8.0 * _return_move(problem, overshoot) / length)
     swing = vehicle.rear_extent * math.sin(min(1.5 * steepest, 0.5 * math.pi))
     return np.where(distance < length, overshoot + swing, 0.0)
 
