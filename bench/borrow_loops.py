@@ -24,7 +24,6 @@ import collections
 import math
 import sys
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,7 +33,9 @@ import numpy as np
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from planner.roads import arc, straight  # noqa: E402 (after the path fix)
+from planner.frenet import to_cartesian  # noqa: E402 (after the path fix)
+from planner.reference import build_reference  # noqa: E402
+from planner.roads import arc, straight  # noqa: E402
 from planner_tools.io import problem_from_json  # noqa: E402
 from planner_tools.sim import simulate  # noqa: E402
 
@@ -66,25 +67,17 @@ def _road(rng: np.random.Generator) -> np.ndarray:
     return np.vstack([points, (tail - tail[0] + points[-1])[1:]])
 
 
-def _placer(points: np.ndarray) -> Callable[[float, float], tuple[float, float, float]]:
-    """``(s, d) → (x, y, heading)`` along the polyline ``points`` (d to the left) [m, rad]."""
-    seg = np.diff(points, axis=0)
-    arc_s = np.concatenate([[0.0], np.cumsum(np.hypot(seg[:, 0], seg[:, 1]))])
-
-    def at(s: float, d: float) -> tuple[float, float, float]:
-        j = int(np.clip(np.searchsorted(arc_s, s) - 1, 0, len(seg) - 1))
-        h = math.atan2(seg[j, 1], seg[j, 0])
-        x, y = float(np.interp(s, arc_s, points[:, 0])), float(np.interp(s, arc_s, points[:, 1]))
-        return x - d * math.sin(h), y + d * math.cos(h), h
-
-    return at
-
-
 def scene(seed: int) -> Scene:
     """The scene of ``seed`` (module docstring)."""
     rng = np.random.default_rng(seed)
     points = _road(rng)
-    at = _placer(points)
+    ref = build_reference(points)
+
+    def at(s: float, d: float) -> tuple[float, float, float]:
+        """``(x, y, heading)`` [m, rad] at Frenet ``(s, d)`` (TransF-κ's inverse)."""
+        x, y = to_cartesian(ref, s, d)
+        return float(x), float(y), float(ref.heading_at(s))
+
     vehicle: dict[str, float] = {
         "length": 4.5,
         "width": 1.8,
@@ -119,13 +112,15 @@ def scene(seed: int) -> Scene:
     oncoming = bool(rng.random() < 0.6)
     if oncoming:
         start, speed = truck_s + float(rng.uniform(10, 160)), float(rng.uniform(4, 15))
-        states = []
-        for k in range(0, 161, 2):
-            s = start - speed * 0.1 * k
-            if s < 0.0:
-                break
-            x, y, h = at(s, 3.5)
-            states.append({"t": 0.1 * k, "x": x, "y": y, "heading": h + math.pi})
+        times = np.arange(0.0, 16.0 + 1e-9, 0.2)
+        times = times[start - speed * times >= 0.0]  # until it leaves the reference's start
+        s = start - speed * times
+        xy = to_cartesian(ref, s, np.full_like(s, 3.5))
+        heading = ref.heading_at(s) + math.pi
+        states = [
+            {"t": float(tk), "x": float(x), "y": float(y), "heading": float(h)}
+            for tk, (x, y), h in zip(times, xy, heading, strict=True)
+        ]
         request["obstacles"].append({"id": "oncoming", "length": 4.5, "width": 1.8, "prediction": states})
     return Scene(request, truck_s, length, oncoming)
 
