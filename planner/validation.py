@@ -373,10 +373,10 @@ def trajectory_violations(
     increasing while moving; no self-intersection; footprint inside the lane, or inside the road when
     ``borrowing`` (the lane decision borrows the road beyond it: :mod:`planner.decision`; the lane lies
     in the road, so the footprint is in the road always) (all four corners by TransF-κ; no further out
-    than the measured start where that is already partly outside) and clear of every static obstacle and
-    of every moving one at its predicted pose at the same time — in continuous time, between the samples
-    too (:mod:`planner.swept`: the pose moves linearly between samples, as the predictions do); for a
-    car, its kinematics (:func:`car_violations`).
+    than the measured start where that is already partly outside, and then inside the road as well)
+    and clear of every static obstacle and of every moving one at its predicted pose at the same time —
+    in continuous time, between the samples too (:mod:`planner.swept`: the pose moves linearly between
+    samples, as the predictions do); for a car, its kinematics (:func:`car_violations`).
     And the numbers agree with each other (:func:`consistency_violations`), the speed keeps ``max_speed``
     (:func:`speed_violations`) and the front stays before the reference line's end.
     """
@@ -419,10 +419,15 @@ def trajectory_violations(
     travelled = np.concatenate(([True], step > _STANDSTILL_STEP))
     if self_intersects(np.column_stack((traj.x, traj.y))[travelled]):
         out.append(Violation(kind.SELF_INTERSECTS))
-    # the lane lies inside the road: while the lane is checked, the road's check would only repeat it
+    # the lane lies inside the road: while the lane is checked from a start inside it, the road's check
+    # would only repeat it
     surfaces: list[tuple[ViolationKind, Lane]] = [(kind.LANE, problem.lane)]
     if borrowing:
         surfaces = [] if problem.road is None else [(kind.ROAD, problem.road)]
+    elif problem.road is not None and start_overshoot(ref, problem) > 0.0:
+        # a vehicle that starts outside its lane may stay out while it returns (start_allowance), as
+        # far as its overshoot and the swing of turning back: the road's edge still bounds it
+        surfaces.append((kind.ROAD, problem.road))
     for surface_kind, surface in surfaces:
         off = leaves_lane(ref, problem, traj.x, traj.y, traj.heading, surface)
         if np.any(off):

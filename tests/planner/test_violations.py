@@ -383,6 +383,30 @@ def test_an_ego_faster_than_max_speed_may_brake_with_the_emergency_jerk_but_neve
     assert speed_violations(braking, _braking_from(18.0, -8.0, EMERGENCY_JERK, 4.0)) == []
 
 
+@pytest.mark.parametrize(
+    ("yaw", "turn", "leaves"), [(0.5, -0.15, False), (0.6, -0.15, True), (0.7, -0.2, True)]
+)
+def test_a_vehicle_outside_its_lane_may_stay_out_while_it_returns_but_never_leaves_the_road(
+    yaw: float, turn: float, leaves: bool
+) -> None:
+    """An ego 3.1 m left of a lane ±1.75 m, in a road reaching 5.25 m left, yawed ``yaw`` [rad] towards
+    its edge, turning back at curvature ``turn`` [1/m] over 5 m: its footprint's front swings out before
+    it comes back. The start allowance lets it stay out of the lane that far; the road's edge is still
+    checked, with or without a borrow (the answer that kept the lane from such a start left the road)."""
+    sigma = np.linspace(0.0, 5.0, 21)
+    heading = yaw + turn * sigma
+    mid = 0.5 * (heading[1:] + heading[:-1])
+    x = 10.0 + np.concatenate(([0.0], np.cumsum(np.cos(mid) * np.diff(sigma))))
+    y = 3.1 + np.concatenate(([0.0], np.cumsum(np.sin(mid) * np.diff(sigma))))
+    back = _from_frenet(STRAIGHT, x, y)  # along the x axis: (s, d) = (x, y)
+    problem = replace(_problem(STRAIGHT, back), lane=Lane(1.75, 1.75), road=Road(5.25, 1.75))
+    for borrowing in (False, True):
+        kinds = {v.kind for v in trajectory_violations(STRAIGHT, problem, back, [], borrowing=borrowing)}
+        assert kinds == ({ViolationKind.ROAD} if leaves else set())
+    # without a road, the lane's start allowance lets it through
+    assert trajectory_violations(STRAIGHT, replace(problem, road=None), back, []) == []
+
+
 def test_a_footprint_that_starts_outside_its_lane_may_stay_out_only_while_it_returns() -> None:
     """Inside at the start: what the first pose reaches out is allowed within one vehicle length, as
     before. Outside by 1.2 m: within the return length (a smootherstep move at half the curvature the
