@@ -23,7 +23,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.collision import LEFT_SIDE, RIGHT_SIDE, FrenetBoxes, footprint_extent, outline_points
+from planner.collision import (
+    LEFT_SIDE,
+    RIGHT_SIDE,
+    FrenetBoxes,
+    footprint_extent,
+    outline_offsets,
+    outline_points,
+)
 from planner.frenet import to_cartesian, to_frenet
 from planner.lane import lane_bounds
 from planner.problem import Lane, Vehicle
@@ -161,7 +168,9 @@ def lateral_bounds(
     With the path's expected heading error to the reference ``θ`` [rad] per knot, the footprint reaches
     :func:`planner.collision.footprint_extent` to either side rather than ``W/2``: ``L/2·|sin θ| + W/2·cos θ``
     for the point model; for a car (planned at its rear axle) its front swings out by ``(L/2 + l_r)·sin θ``
-    to the side it turns to, its rear by ``(L/2 − l_r)·sin θ`` to the other.
+    to the side it turns to, its rear by ``(L/2 − l_r)·sin θ`` to the other. That is what the obstacles'
+    boxes are kept from; against the lane's edges each point of the outline, at ``(u, v)`` on the body
+    (:func:`planner.collision.outline_offsets`), reaches ``u·sin θ + v·cos θ`` across where it is.
 
     ``geometry``: :func:`knot_geometry` of these knots, lane and vehicle where the caller has it
     (computed here otherwise).
@@ -202,24 +211,31 @@ def lateral_bounds(
     lower, upper = np.maximum(lower, obs_lower), np.minimum(upper, obs_upper)
     # Then, wherever it fits with all of the above: the footprint turned by the heading error, and
     # then also with its corners bulging out of curves, towards the obstacles on the outside and the
-    # lane's edge: each corner against the lane's width where it is (a lane flaring out in a turn gives
-    # the corner that bulges into it the room it has there, and one narrowing ahead takes it).
+    # lane's edge: each point of its outline, turned, against the lane's width where it is (a lane
+    # flaring out in a turn, or a borrow's ramp opening ahead, gives the front the room it has there,
+    # and one narrowing ahead takes it), and the sides abeam the planned point against the width there.
     turned = lane_bounds(ref, lane, s, half_width=0.0, margin=edge)
-    lo, up = turned.lower + ext_right, turned.upper - ext_left
+    abeam = half_w * np.cos(theta)
+    lo, up = turned.lower + abeam, turned.upper - abeam
     obs_lo, obs_up = obstacle_edges(ext_right, ext_left)
     lo, up = np.maximum(lo, obs_lo), np.minimum(up, obs_up)
     fits = (lo <= up) & ~narrow
     lower, upper = np.where(fits, lo, lower), np.where(fits, up, upper)
     obs_lo, obs_up = obstacle_edges(ext_right + corners.right, ext_left + corners.left)
     lo, up = np.maximum(lo, obs_lo), np.minimum(up, obs_up)
+    # each outline point turned by θ about the planned point: across by u·sin θ + v·cos θ, along by
+    # u·(cos θ − 1) − v·sin θ from where the aligned footprint has it
+    u, v = outline_offsets(vehicle)
+    sin_t, cos_t = np.sin(theta)[:, None], np.cos(theta)[:, None]
+    across = u * sin_t + v * cos_t
     # (Behind the first knot, where the vehicle comes from, the lane is taken as wide as at that knot:
     # a reference often starts just behind the vehicle, where the lane's edges may close in.)
-    corner_s = np.maximum(corners.s, s[0])
+    corner_s = np.maximum(corners.s + u * (cos_t - 1.0) - v * sin_t, s[0])
     left_w, right_w = lane.widths(ref, corner_s)
     for c in RIGHT_SIDE:
-        lo = np.maximum(lo, -right_w[:, c] + edge + ext_right + corners.reach[:, c])
+        lo = np.maximum(lo, -right_w[:, c] + edge - across[:, c] + corners.reach[:, c])
     for c in LEFT_SIDE:
-        up = np.minimum(up, left_w[:, c] - edge - ext_left - corners.reach[:, c])
+        up = np.minimum(up, left_w[:, c] - edge - across[:, c] - corners.reach[:, c])
     fits = (lo <= up) & ~narrow
     lower, upper = np.where(fits, lo, lower), np.where(fits, up, upper)
     # Last, the turning limit: where the lane leaves no room within it, the road is blocked for this

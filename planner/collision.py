@@ -89,6 +89,14 @@ def outline_points(
     return _placed(_OUTLINE, x, y, heading, length, width)
 
 
+def outline_offsets(vehicle: Vehicle) -> tuple[FloatArray, FloatArray]:
+    """Where the points of :func:`outline_points` lie on the vehicle's body [m], from its planned point (the
+    centre; a car's rear axle, ``l_r`` behind it): along the body (forwards positive) and across it (left
+    positive), each of shape (10,)."""
+    along = _OUTLINE[:, 0] * vehicle.length + vehicle.rear_offset
+    return along, _OUTLINE[:, 1] * vehicle.width
+
+
 def footprints(x: FloatArray, y: FloatArray, heading: FloatArray, vehicle: Vehicle) -> NDArray[np.object_]:
     """The vehicle's footprint polygons at each trajectory point (shapely, vectorised)."""
     corners = box_corners(np.asarray(x), np.asarray(y), np.asarray(heading), vehicle.length, vehicle.width)
