@@ -57,8 +57,11 @@ RETURN_SHARE = 0.5
 #: tolerances of the trajectory checks
 _GEOMETRY_TOL = 1e-3  # [m]
 _RATE_TOL = 1e-3  # relative, on limits
-#: the first point may be this far from the ego [m]
+#: the first point may be this far from the ego [m] ...
 _START_TOL = 0.05
+#: ... and, while the ego moves, its heading this far from the ego's yaw [rad] (nothing turns on the
+#: spot at speed; the plans' own first headings are within 2e-3 of it)
+_START_HEADING_TOL = 0.02
 #: a point moves when its speed exceeds this [m/s]
 _MOVING = 0.05
 #: absolute tolerances on the curvature [1/m], lateral acceleration and acceleration [m/s²]
@@ -365,25 +368,28 @@ def trajectory_violations(
 ) -> list[Violation]:
     """Every check a returned trajectory must pass, in this order; an empty list when it passes them all.
 
-    Starts at the ego; ``1 − κ·d > 0``; ``|curvature| ≤ max_curvature`` (a car's
-    :attr:`~planner.problem.Vehicle.curvature_limit`) while moving and the body's lateral acceleration
-    (:func:`planner.kinematics.lateral_acceleration`, ``v²·|curvature|`` for the point model) at most
-    ``max_lateral_acceleration``; acceleration within the limits; consecutive positions of the planned
-    point (the centre, a car's rear axle) consistent with ``v·dt``; ``s`` never decreasing and strictly
-    increasing while moving; no self-intersection; footprint inside the lane, or inside the road when
-    ``borrowing`` (the lane decision borrows the road beyond it: :mod:`planner.decision`; the lane lies
-    in the road, so the footprint is in the road always) (all four corners by TransF-κ; no further out
-    than the measured start where that is already partly outside, and then inside the road as well)
-    and clear of every static obstacle and of every moving one at its predicted pose at the same time —
-    in continuous time, between the samples too (:mod:`planner.swept`: the pose moves linearly between
-    samples, as the predictions do); for a car, its kinematics (:func:`car_violations`).
+    Starts at the ego (its position, and its yaw while it moves); ``1 − κ·d > 0``; ``|curvature| ≤
+    max_curvature`` (a car's :attr:`~planner.problem.Vehicle.curvature_limit`) while moving and the body's
+    lateral acceleration (:func:`planner.kinematics.lateral_acceleration`, ``v²·|curvature|`` for the point
+    model) at most ``max_lateral_acceleration``; acceleration within the limits; consecutive positions of the
+    planned point (the centre, a car's rear axle) consistent with ``v·dt``; ``s`` never decreasing and
+    strictly increasing while moving; no self-intersection; footprint inside the lane, or inside the road when
+    ``borrowing`` (the lane decision borrows the road beyond it: :mod:`planner.decision`; the lane lies in the
+    road, so the footprint is in the road always) (all four corners by TransF-κ; no further out than the
+    measured start where that is already partly outside, and then inside the road as well) and clear of every
+    static obstacle and of every moving one at its predicted pose at the same time — in continuous time,
+    between the samples too (:mod:`planner.swept`: the pose moves linearly between samples, as the predictions
+    do); for a car, its kinematics (:func:`car_violations`).
     And the numbers agree with each other (:func:`consistency_violations`), the speed keeps ``max_speed``
     (:func:`speed_violations`) and the front stays before the reference line's end.
     """
     vehicle, ego, t = problem.vehicle, problem.ego, traj.t
     kind = ViolationKind
     out: list[Violation] = []
-    if np.hypot(traj.x[0] - ego.x, traj.y[0] - ego.y) > _START_TOL:
+    turned = abs(math.remainder(float(traj.heading[0]) - ego.heading, 2.0 * math.pi))
+    if np.hypot(traj.x[0] - ego.x, traj.y[0] - ego.y) > _START_TOL or (
+        ego.speed > _MOVING and turned > _START_HEADING_TOL
+    ):
         out.append(Violation(kind.START, t=float(t[0])))
     moving = traj.v > _MOVING
     kappa = ref.kappa_at(traj.s)

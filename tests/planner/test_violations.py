@@ -147,10 +147,12 @@ def _case(kind: ViolationKind) -> tuple[PlanningProblem, Trajectory]:
         around = _along(LOOP, steps=130)  # 65 m along a circle of 63 m
         return _problem(LOOP, around), around
     if kind is ViolationKind.LANE:
-        return _problem(STRAIGHT, CLEAN), _drift()
+        drift = _drift()
+        return _problem(STRAIGHT, drift), drift
     if kind is ViolationKind.ROAD:  # borrowing a road 3.5 m to the left: the drift leaves it too
-        narrow = replace(_problem(STRAIGHT, CLEAN), lane=Lane(1.75, 1.75), road=Road(3.5, 1.75))
-        return narrow, _drift()
+        drift = _drift()
+        narrow = replace(_problem(STRAIGHT, drift), lane=Lane(1.75, 1.75), road=Road(3.5, 1.75))
+        return narrow, drift
     if kind is ViolationKind.HITS_OBSTACLE:
         parked = PolygonObstacle("parked", _box(30.0, 34.0, 0.5, 2.0))
         return _problem(STRAIGHT, CLEAN, parked), CLEAN
@@ -169,7 +171,8 @@ def _case(kind: ViolationKind) -> tuple[PlanningProblem, Trajectory]:
     if kind is ViolationKind.FRENET:
         return _problem(STRAIGHT, CLEAN), replace(CLEAN, d=_set(CLEAN.d, 20, 0.5))  # the position stays
     if kind is ViolationKind.HEADING:
-        return _problem(STRAIGHT, CLEAN), replace(CLEAN, heading=CLEAN.heading + 0.3)  # crabbing
+        crabbing = replace(CLEAN, heading=CLEAN.heading + 0.3)  # the ego yawed so too
+        return _problem(STRAIGHT, crabbing), crabbing
     if kind is ViolationKind.TURN:
         # curvature 0.15 1/m reported while the heading does not change (within the vehicle's limits)
         turning = replace(CLEAN, curvature=np.full(CLEAN.size, 0.15))
@@ -381,6 +384,22 @@ def test_an_ego_faster_than_max_speed_may_brake_with_the_emergency_jerk_but_neve
     braking = replace(problem, ego=replace(ego, acceleration=-8.0))
     np.testing.assert_allclose(fastest_braking(braking, np.array([0.0, 1.0])), [18.0, 10.0])
     assert speed_violations(braking, _braking_from(18.0, -8.0, EMERGENCY_JERK, 4.0)) == []
+
+
+def test_a_trajectory_starts_along_the_moving_egos_yaw() -> None:
+    """Nothing turns on the spot at speed: a trajectory whose first heading is 0.3 rad off a moving ego's
+    yaw does not start at the ego (a held offset along the reference from a yawed ego did, unchecked); a
+    standing ego may set off in any direction (a robot turning in place), and 0.01 rad is within the
+    tolerance."""
+    problem = _problem(STRAIGHT, CLEAN)
+    yawed = replace(problem, ego=replace(problem.ego, heading=0.3))
+    assert {v.kind for v in trajectory_violations(STRAIGHT, yawed, CLEAN, [])} == {ViolationKind.START}
+    nearly = replace(problem, ego=replace(problem.ego, heading=0.01))
+    assert trajectory_violations(STRAIGHT, nearly, CLEAN, []) == []
+    setting_off = _along(STRAIGHT, speed=0.0)
+    standing = _problem(STRAIGHT, setting_off)
+    turned = replace(standing, ego=replace(standing.ego, heading=0.3, speed=0.0))
+    assert trajectory_violations(STRAIGHT, turned, setting_off, []) == []
 
 
 @pytest.mark.parametrize(
