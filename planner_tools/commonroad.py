@@ -1141,6 +1141,7 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
 
     accel = getattr(init, "acceleration", 0.0)
     vehicle = {**VEHICLE, **vehicle_type_car()}
+    curvature = initial_curvature(getattr(init, "yaw_rate", None), ego_speed, vehicle)
     request = {
         "reference_line": _points_json(pts),
         "lane": {"left_width": [_r(w) for w in left], "right_width": [_r(w) for w in right]},
@@ -1152,6 +1153,7 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
             "heading": ego_heading,
             "speed": _r(ego_speed),
             "acceleration": _r(accel if accel is not None else 0.0),
+            **({} if curvature is None else {"curvature": _r(curvature, 5)}),
         },
         "vehicle": vehicle,
         "options": {
@@ -1184,6 +1186,34 @@ def convert_scenario(path: str | Path, *, planning_problem_id: int | None = None
         "region": region,
     }
     return Conversion(Path(path).stem, request, goal_out, info)
+
+
+#: below this speed [m/s] a yaw rate says little of the path's curvature (``κ = ψ̇ / v``)
+YAW_RATE_MIN_SPEED = 0.5
+#: the share of the vehicle's lateral acceleration limit a converted start's curvature is held to (the
+#: planner's own margin, ``PlannerConfig.limit_margin``)
+START_LATERAL_SHARE = 0.9
+
+
+def initial_curvature(yaw_rate: float | None, speed: float, vehicle: dict[str, Any]) -> float | None:
+    """The ego's path curvature [1/m] from CommonRoad's initial yaw rate ``ψ̇`` [rad/s] and speed [m/s]:
+    ``ψ̇ / v`` (the kinematic single-track model turns its body at ``ψ̇ = v tan δ / ℓ``, ``v`` the rear
+    axle's speed, whose path's curvature ``tan δ / ℓ`` a car's request gives), within what the request's
+    ``vehicle`` can drive at that speed: its curvature limit and :data:`START_LATERAL_SHARE` of its
+    lateral acceleration limit (a recorded driver may turn harder than that, and every answer is held
+    to the limit from its first instant). None (the planner then takes the vehicle to follow the road)
+    without a yaw rate or below :data:`YAW_RATE_MIN_SPEED`. A vehicle recorded in a turn starts
+    steering into it: taken as driving straight, it would have to steer faster than it can to stay in
+    its lane."""
+    from planner.kinematics import lateral_curvature
+    from planner.problem import Vehicle
+
+    if yaw_rate is None or not math.isfinite(float(yaw_rate)) or speed < YAW_RATE_MIN_SPEED:
+        return None
+    car = Vehicle(**vehicle)
+    lateral = START_LATERAL_SHARE * car.max_lateral_acceleration / speed**2
+    limit = min(car.curvature_limit, float(lateral_curvature(lateral, car)))
+    return float(np.clip(float(yaw_rate) / speed, -limit, limit))
 
 
 def vehicle_type_car(vehicle_type: int = VEHICLE_TYPE) -> dict[str, float]:
@@ -1346,8 +1376,9 @@ def recorded_as_ego(
     """``(scenario, planning problem set)``: a copy of ``scenario`` without its recorded vehicle
     ``obstacle_id``, which becomes the ego: its first recorded state is the initial state (planning
     problem id = ``obstacle_id``), the goal a 10 m × 4 m rectangle along its last heading centred where
-    its recording ends, from ``slack[0]`` [s] before to ``slack[1]`` [s] after that end. Scenes no test
-    was tuned on, whose traffic reacted to the recorded vehicle, not to the planner.
+    its recording ends, from ``slack[0]`` [s] before to ``slack[1]`` [s] after that end; its yaw rate that
+    of its first recorded step. Scenes no test was tuned on, whose traffic reacted to the recorded
+    vehicle, not to the planner.
 
     Raises:
         CommonRoadError: for an id that is no recorded vehicle at exact positions.
@@ -1366,14 +1397,18 @@ def recorded_as_ego(
     new.remove_obstacle(new.obstacle_by_id(obstacle_id))
     dt = float(new.dt)
     init = obstacle.initial_state
-    last = obstacle.prediction.trajectory.state_list[-1]
+    states = obstacle.prediction.trajectory.state_list
+    last = states[-1]
+    # its yaw rate over its first recorded step (a car recorded in a turn starts steering into it)
+    turned = float(np.angle(np.exp(1j * (float(states[0].orientation) - float(init.orientation)))))
+    steps = max(int(states[0].time_step) - int(init.time_step), 1)
     start = InitialState(
         time_step=int(init.time_step),
         position=np.asarray(init.position, dtype=float),
         orientation=float(init.orientation),
         velocity=float(getattr(init, "velocity", 0.0) or 0.0),
         acceleration=0.0,
-        yaw_rate=0.0,
+        yaw_rate=turned / (steps * dt),
         slip_angle=0.0,
     )
     target = CustomState(

@@ -15,6 +15,7 @@ import pytest
 
 from app.models.planning import PlanningRequest
 from planner.pipeline import plan
+from planner.problem import Vehicle
 from planner.reference import build_reference
 from planner_tools import commonroad as cr
 from planner_tools.cli import main as cli_main
@@ -375,6 +376,43 @@ def test_a_recorded_car_becomes_the_ego_of_a_new_scene(tmp_path: Path) -> None:
     assert plan(problem_from_json(conv.request)).status in ("ok", "stopped", "fallback")
     with pytest.raises(cr.CommonRoadError, match="no recorded vehicle"):
         cr.recorded_as_ego(scenario, -1)
+
+
+def test_a_recorded_car_in_a_turn_starts_steering_into_it(tmp_path: Path) -> None:
+    """DEU_Lohmar-55's car 310 is recorded turning right at 5.6 m/s, about 1 rad/s. As the ego of a
+    swapped scene it starts with that yaw rate, and the request's curvature is ``ψ̇ / v`` held to 0.9 of
+    the car's 4 m/s² lateral limit (the recorded driver turns at about 5.6 m/s²). Started straight (yaw
+    rate 0), the car had to steer at 0.62 rad/s to stay in its lane (limit 0.4): a braking fallback."""
+    pytest.importorskip("commonroad")
+    scenario, _ = cr.read_scenario(DATA / "DEU_Lohmar-55_1_T-1.xml.gz")
+    new, problems = cr.recorded_as_ego(scenario, 310, (2.0, 4.0))
+    states = scenario.obstacle_by_id(310).prediction.trajectory.state_list
+    yaw_rate = problems.planning_problem_dict[310].initial_state.yaw_rate
+    car = scenario.obstacle_by_id(310)
+    assert yaw_rate == pytest.approx((states[0].orientation - car.initial_state.orientation) / scenario.dt)
+    assert yaw_rate < -0.9
+    path = cr.write_scenario(tmp_path / "swapped.xml", new, problems)
+    request = cr.load(path).request
+    ego, vehicle = request["ego"], Vehicle(**request["vehicle"])
+    body = abs(ego["curvature"]) * math.hypot(1.0, vehicle.rear_offset * ego["curvature"]) * ego["speed"] ** 2
+    assert ego["curvature"] < 0.0
+    assert body == pytest.approx(cr.START_LATERAL_SHARE * vehicle.max_lateral_acceleration, rel=1e-3)
+    result = plan(prepare(path, Settings(vehicle="car")).problem)
+    assert result.status == "ok", result.message
+    assert result.trajectory.curvature[0] == pytest.approx(ego["curvature"], abs=1e-3)
+
+
+def test_a_start_curvature_is_the_yaw_rate_over_the_speed_within_the_vehicles_limits() -> None:
+    vehicle = {**cr.VEHICLE, "wheelbase": 2.5, "rear_axle_offset": 1.2, "max_curvature": 0.4}
+    assert cr.initial_curvature(0.05, 10.0, vehicle) == pytest.approx(0.005)
+    assert cr.initial_curvature(-0.05, 10.0, vehicle) == pytest.approx(-0.005)
+    assert cr.initial_curvature(None, 10.0, vehicle) is None
+    assert cr.initial_curvature(0.3, cr.YAW_RATE_MIN_SPEED / 2, vehicle) is None  # too slow to say
+    assert cr.initial_curvature(2.0, 1.0, vehicle) == pytest.approx(0.4)  # the curvature limit
+    fast = cr.initial_curvature(1.0, 8.0, vehicle)  # 8 m/s² for a 4 m/s² car
+    assert fast is not None
+    body = fast * math.hypot(1.0, 1.2 * fast) * 8.0**2
+    assert body == pytest.approx(cr.START_LATERAL_SHARE * vehicle["max_lateral_acceleration"])
 
 
 def test_a_line_continued_straight_keeps_its_direction_spacing_and_end_widths() -> None:
