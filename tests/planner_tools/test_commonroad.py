@@ -386,10 +386,10 @@ def test_a_recorded_car_in_a_turn_starts_steering_into_it(tmp_path: Path) -> Non
     pytest.importorskip("commonroad")
     scenario, _ = cr.read_scenario(DATA / "DEU_Lohmar-55_1_T-1.xml.gz")
     new, problems = cr.recorded_as_ego(scenario, 310, (2.0, 4.0))
-    states = scenario.obstacle_by_id(310).prediction.trajectory.state_list
-    yaw_rate = problems.planning_problem_dict[310].initial_state.yaw_rate
     car = scenario.obstacle_by_id(310)
-    assert yaw_rate == pytest.approx((states[0].orientation - car.initial_state.orientation) / scenario.dt)
+    first = car.prediction.trajectory.state_list[0]
+    yaw_rate = problems.planning_problem_dict[310].initial_state.yaw_rate
+    assert yaw_rate == pytest.approx((first.orientation - car.initial_state.orientation) / scenario.dt)
     assert yaw_rate < -0.9
     path = cr.write_scenario(tmp_path / "swapped.xml", new, problems)
     request = cr.load(path).request
