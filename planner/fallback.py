@@ -3,9 +3,9 @@
 Full braking within the emergency jerk is tried along the optimised path, then along the chosen
 candidate, then at the ego's offset from the reference; the first braking trajectory that passes every
 check is taken. Where the least severe of them still breaks the vehicle's limits (a start faster than
-any bend ahead allows) or its numbers disagree, braking straight on along the ego's heading
-(:func:`straight_on`: no curvature, so no lateral acceleration and no steering) is tried too. Else the
-least severe is taken (:func:`severity`).
+any bend ahead allows) or its numbers disagree (it does not start at the ego's steering angle, say),
+braking straight on along the ego's heading (:func:`straight_on`: steering back to straight as fast as
+the vehicle may, then no curvature) is tried too. Else the least severe is taken (:func:`severity`).
 
 Braking into moving traffic is never better than driving on: when a braking trajectory is hit from behind
 (a :attr:`~planner.validation.ViolationKind.HITS_MOVING_OBSTACLE` of one of
@@ -29,6 +29,7 @@ behind, then the other checks (the lane, the road's end).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Collection
 from dataclasses import dataclass
 
@@ -191,23 +192,62 @@ def fallback(
 
 
 def straight_on(ref: ReferenceLine, problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Path:
-    """The straight line from the ego's planned point (its centre, a car's rear axle) along its heading
-    [rad], long enough to brake to a stop from its speed (``v²/(2·a_dec)`` plus a second at that speed for
-    the jerk's ramp; at most the horizon at that speed, 1 m at least), at knots
-    ``config.lateral.knot_spacing`` [m] apart or wider (at most ``max_knots``); ``s, d`` by TransF-κ."""
+    """The path from the ego's planned point (its centre, a car's rear axle) along its heading [rad],
+    steering back to straight as fast as it may (:func:`unwound`) and then straight on, long enough to
+    brake to a stop from its speed (``v²/(2·a_dec)`` plus a second at that speed for the jerk's ramp; at
+    most the horizon at that speed, 1 m at least), at knots ``config.lateral.knot_spacing`` [m] apart or
+    wider (at most ``max_knots``); ``s, d`` by TransF-κ."""
     ego, vehicle = problem.ego, problem.vehicle
     v0 = max(ego.speed, 0.0)
     # no longer than the horizon drives at the start's speed (a profile past the end carries on straight)
     length = max(min(v0 * v0 / (2.0 * vehicle.max_deceleration) + v0, v0 * problem.options.horizon_time), 1.0)
     n = int(np.clip(np.ceil(length / config.lateral.knot_spacing) + 1, 2, config.lateral.max_knots))
-    sigma: FloatArray = np.linspace(0.0, length, n)
+    # positions integrated on a grid _FINE times finer than the knots (the heading is exact)
+    fine: FloatArray = np.linspace(0.0, length, (n - 1) * _FINE + 1)
+    curvature, heading = unwound(problem, fine, config)
+    step = np.diff(fine)
     # the planned point: a car's rear axle, ``l_r`` behind the centre along the yaw
-    cos, sin = np.cos(ego.heading), np.sin(ego.heading)
-    x = ego.x + (sigma - vehicle.rear_offset) * cos
-    y = ego.y + (sigma - vehicle.rear_offset) * sin
-    frenet = to_frenet(ref, np.column_stack((x, y)))
-    heading = np.full(n, ego.heading)
-    return Path(s=frenet.s, d=frenet.d, x=x, y=y, heading=heading, curvature=np.zeros(n), sigma=sigma)
+    x0 = ego.x - vehicle.rear_offset * np.cos(ego.heading)
+    y0 = ego.y - vehicle.rear_offset * np.sin(ego.heading)
+    cos, sin = np.cos(heading), np.sin(heading)
+    x = x0 + np.concatenate(([0.0], np.cumsum(0.5 * (cos[1:] + cos[:-1]) * step)))
+    y = y0 + np.concatenate(([0.0], np.cumsum(0.5 * (sin[1:] + sin[:-1]) * step)))
+    at = slice(None, None, _FINE)
+    frenet = to_frenet(ref, np.column_stack((x[at], y[at])))
+    return Path(
+        s=frenet.s, d=frenet.d, x=x[at], y=y[at], heading=heading[at], curvature=curvature[at], sigma=fine[at]
+    )
+
+
+#: :func:`straight_on` integrates its positions on a grid this many times finer than its knots
+_FINE = 16
+
+
+def unwound(
+    problem: PlanningProblem, sigma: FloatArray, config: PlannerConfig = DEFAULT_CONFIG
+) -> tuple[FloatArray, FloatArray]:
+    """The curvature [1/m] and heading [rad] at arc lengths ``sigma`` [m] of a path that starts at the ego's
+    heading and measured curvature and steers back to straight: for a car whose steering rate is bounded,
+    ``κ(σ) = κ₀ − sign(κ₀)·c·min(σ, |κ₀|/c)`` with ``c = share·δ̇_max / (W·v₀)`` [1/m²] (``share`` the speed
+    stage's ``steering_rate_share``), so that ``|δ̇| = W·v·|dκ/dσ| / (1 + W²κ²) ≤ share·δ̇_max`` at any speed
+    up to the start's ``v₀``; the heading ``θ₀ + κ₀·m − sign(κ₀)·c·m²/2`` with ``m = min(σ, |κ₀|/c)``.
+    Straight from the start (no curvature) for any other vehicle or without a measured curvature: it may
+    steer at once."""
+    ego, vehicle = problem.ego, problem.vehicle
+    kappa0 = ego.curvature if vehicle.is_car and vehicle.max_steering_rate is not None else None
+    if not kappa0:
+        return np.zeros_like(sigma), np.full_like(sigma, ego.heading)
+    assert vehicle.wheelbase is not None and vehicle.max_steering_rate is not None  # a car's, above
+    rate = config.speed.steering_rate_share * vehicle.max_steering_rate
+    slope = rate / (vehicle.wheelbase * max(ego.speed, _SLOWEST))
+    m = np.minimum(sigma, abs(kappa0) / slope)
+    sign = math.copysign(1.0, kappa0)
+    curvature = sign * np.maximum(abs(kappa0) - slope * sigma, 0.0)  # exactly 0 once unwound
+    return curvature, ego.heading + kappa0 * m - sign * slope * m * m / 2.0
+
+
+#: the speed [m/s] :func:`unwound` unwinds at least for (slower: within a few millimetres)
+_SLOWEST = 0.1
 
 
 def _distinct(*paths: Path) -> list[Path]:

@@ -60,8 +60,10 @@ _RATE_TOL = 1e-3  # relative, on limits
 #: the first point may be this far from the ego [m] ...
 _START_TOL = 0.05
 #: ... and, while the ego moves, its heading this far from the ego's yaw [rad] (nothing turns on the
-#: spot at speed; the plans' own first headings are within 2e-3 of it)
-_START_HEADING_TOL = 0.02
+#: spot at speed; the plans' own first headings are within 2e-3 of it) and, for a car whose steering rate
+#: is bounded and whose curvature is measured, its steering angle this far from the measured one [rad]
+#: (the plans' own are within 5e-3 of it)
+_START_HEADING_TOL = _START_STEERING_TOL = 0.02
 #: a point moves when its speed exceeds this [m/s]
 _MOVING = 0.05
 #: absolute tolerances on the curvature [1/m], lateral acceleration and acceleration [m/s²]
@@ -368,10 +370,11 @@ def trajectory_violations(
 ) -> list[Violation]:
     """Every check a returned trajectory must pass, in this order; an empty list when it passes them all.
 
-    Starts at the ego (its position, and its yaw while it moves); ``1 − κ·d > 0``; ``|curvature| ≤
-    max_curvature`` (a car's :attr:`~planner.problem.Vehicle.curvature_limit`) while moving and the body's
-    lateral acceleration (:func:`planner.kinematics.lateral_acceleration`, ``v²·|curvature|`` for the point
-    model) at most ``max_lateral_acceleration``; acceleration within the limits; consecutive positions of the
+    Starts at the ego (its position, and while it moves its yaw and, for a car whose steering rate is
+    bounded, its measured steering angle); ``1 − κ·d > 0``; ``|curvature| ≤ max_curvature`` (a car's
+    :attr:`~planner.problem.Vehicle.curvature_limit`) while moving and the body's lateral acceleration
+    (:func:`planner.kinematics.lateral_acceleration`, ``v²·|curvature|`` for the point model) at most
+    ``max_lateral_acceleration``; acceleration within the limits; consecutive positions of the
     planned point (the centre, a car's rear axle) consistent with ``v·dt``; ``s`` never decreasing and
     strictly increasing while moving; no self-intersection; footprint inside the lane, or inside the road when
     ``borrowing`` (the lane decision borrows the road beyond it: :mod:`planner.decision`; the lane lies in the
@@ -388,7 +391,7 @@ def trajectory_violations(
     out: list[Violation] = []
     turned = abs(math.remainder(float(traj.heading[0]) - ego.heading, 2.0 * math.pi))
     if np.hypot(traj.x[0] - ego.x, traj.y[0] - ego.y) > _START_TOL or (
-        ego.speed > _MOVING and turned > _START_HEADING_TOL
+        ego.speed > _MOVING and (turned > _START_HEADING_TOL or _steered_at_start(problem, traj))
     ):
         out.append(Violation(kind.START, t=float(t[0])))
     moving = traj.v > _MOVING
@@ -455,6 +458,16 @@ def trajectory_violations(
     if vehicle.is_car:
         out += car_violations(vehicle, traj)
     return out
+
+
+def _steered_at_start(problem: PlanningProblem, traj: Trajectory) -> bool:
+    """Whether ``traj`` starts at another steering angle than the ego's measured one (its curvature),
+    for a car whose steering rate is bounded: it cannot be at another one at once."""
+    vehicle, measured = problem.vehicle, problem.ego.curvature
+    if not vehicle.is_car or vehicle.max_steering_rate is None or measured is None:
+        return False
+    first = steering_angle(np.array([traj.curvature[0], measured]), vehicle)
+    return bool(abs(first[0] - first[1]) > _START_STEERING_TOL)
 
 
 #: a car's rear axle may move this far off its yaw [rad]: far below the slip of its centre in a turn

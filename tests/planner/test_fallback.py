@@ -14,16 +14,16 @@ from scenario_roads import Road, arc_piece, follow_prediction, straight_piece
 from traffic import LANE, ROAD, T, car, violations
 
 from planner.ego import start_state
-from planner.fallback import fallback, severity
+from planner.fallback import fallback, severity, straight_on
 from planner.pipeline import plan
 from planner.problem import DynamicObstacle, Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import build_reference
-from planner.roads import u_turn
+from planner.roads import straight, u_turn
 from planner.speed import Profile, ProfileKind
 from planner.st_bounds import static_shapes
 from planner.timing import STAGES, TOTAL
 from planner.trajectory import polyline_path
-from planner.validation import Violation, ViolationKind
+from planner.validation import LIMITS, Violation, ViolationKind
 from tests.regression.checks import limit_problems
 
 KIND = ViolationKind
@@ -194,9 +194,7 @@ def test_when_braking_stands_in_crossing_traffic_the_fallback_drives_on() -> Non
 
 def test_braking_stays_when_driving_on_hits_a_leader_sooner() -> None:
     """A leader braking hard ahead: every profile hits it, braking latest; the fallback brakes."""
-    leader = DynamicObstacle(
-        "leader", 4.5, 1.8, np.column_stack((T, 40.0 + 0 * T, 0 * T, 0 * T))
-    )
+    leader = DynamicObstacle("leader", 4.5, 1.8, np.column_stack((T, 40.0 + 0 * T, 0 * T, 0 * T)))
     problem = PlanningProblem(ROAD, LANE, Ego(30.0, 0.0, 0.0, 12.0), (leader,), Vehicle())
     ref = build_reference(ROAD)
     start = start_state(ref, problem)
@@ -318,6 +316,62 @@ def test_a_start_too_fast_for_every_bend_ahead_brakes_straight_on_within_the_lim
     np.testing.assert_allclose(np.unwrap(traj.heading), heading, atol=1e-9)
     assert traj.v[-1] < traj.v[0]
     assert KIND.LANE in {v.kind for v in result.violations}
+
+
+def test_a_car_braking_straight_on_first_steers_back_to_straight_within_its_steering_rate() -> None:
+    """A car at 12 m/s on a bend of 10 m radius (14 m/s² along it) measured steering into it at 0.015 1/m
+    (2.2 m/s², its limit 3): every path along the road breaks the lateral limit and the fallback brakes
+    straight on. It starts at the measured steering angle and unwinds it within the steering rate, then
+    drives straight; before, it started straight at once, 0.04 rad off the angle it was steering at."""
+    road = Road([arc_piece(10.0, np.pi), straight_piece(80.0)])
+    vehicle = Vehicle(wheelbase=2.7, rear_axle_offset=1.35, max_steering_rate=0.4)
+    x, y, heading = road.pose(2.0)
+    ego = Ego(x, y, heading, 12.0, curvature=0.015)
+    problem = PlanningProblem(road.polyline(0.5), Lane(3.5, 3.5), ego, (), vehicle)
+    result = plan(problem)
+    assert result.status == "fallback"
+    traj = result.trajectory
+    assert traj.curvature[0] == pytest.approx(0.015, abs=1e-5)
+    assert limit_problems(problem, traj) == []
+    assert np.all(np.diff(traj.curvature) <= 1e-12) and traj.curvature[-1] == 0.0  # unwinding, then straight
+    assert not {v.kind for v in result.violations} & {ViolationKind.START, *LIMITS}
+
+
+@pytest.mark.parametrize("curvature", [-0.2, -0.01, 0.003, 0.15])
+@pytest.mark.parametrize("speed", [0.3, 4.0, 25.0])
+def test_the_straight_on_path_unwinds_the_measured_curvature_at_the_steering_rate(
+    curvature: float, speed: float
+) -> None:
+    """The path's heading is its curvature's integral and its points follow the heading; driven at any
+    speed up to the start's, the steering rate stays within its share of the limit; past the unwinding,
+    the curvature is 0."""
+    vehicle = Vehicle(wheelbase=2.7, rear_axle_offset=1.35, max_steering_rate=0.4)
+    problem = PlanningProblem(
+        straight(100.0, step=1.0),
+        Lane(3.5, 3.5),
+        Ego(10.0, 0.5, 0.2, speed, curvature=curvature),
+        (),
+        vehicle,
+    )
+    ref = build_reference(problem.reference_line)
+    path = straight_on(ref, problem)
+    assert path.curvature[0] == pytest.approx(curvature) and path.heading[0] == pytest.approx(0.2)
+    # the curvature is monotone between knots: the heading turns by between its ends' times the step
+    turned, step = np.diff(path.heading), np.diff(path.sigma)
+    low = np.minimum(path.curvature[1:], path.curvature[:-1]) * step
+    high = np.maximum(path.curvature[1:], path.curvature[:-1]) * step
+    assert np.all((turned >= low - 1e-12) & (turned <= high + 1e-12))
+    # the heading is monotone between knots: each chord's direction lies between its ends' headings
+    chord = np.arctan2(np.diff(path.y), np.diff(path.x))
+    along = np.angle(np.exp(1j * (chord - path.heading[:-1])))  # from the heading at the start of the step
+    assert np.all((along >= np.minimum(turned, 0.0) - 1e-6) & (along <= np.maximum(turned, 0.0) + 1e-6))
+    steering = np.arctan(vehicle.wheelbase * path.curvature)
+    rate = speed * np.abs(np.diff(steering)) / np.diff(path.sigma)  # at the start's speed, the fastest
+    assert rate.max() <= 0.9 * 0.4 + 1e-9
+    unwound_at = abs(curvature) * vehicle.wheelbase * speed / (0.9 * 0.4)
+    assert np.all(path.curvature[path.sigma >= unwound_at] == 0.0)
+    # the planned point is the rear axle, 1.35 m behind the centre along the yaw
+    assert (path.x[0], path.y[0]) == pytest.approx((10.0 - 1.35 * np.cos(0.2), 0.5 - 1.35 * np.sin(0.2)))
 
 
 def test_a_car_yawed_far_off_a_tight_u_turns_leg_brakes_along_its_own_heading_from_where_it_is() -> None:

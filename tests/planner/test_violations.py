@@ -402,6 +402,25 @@ def test_a_trajectory_starts_along_the_moving_egos_yaw() -> None:
     assert trajectory_violations(STRAIGHT, turned, setting_off, []) == []
 
 
+def test_a_car_whose_steering_rate_is_bounded_starts_at_its_measured_steering_angle() -> None:
+    """A moving car measured steering (curvature 0.05 1/m: 0.134 rad at its 2.7 m wheelbase) is not at
+    another steering angle at once when its steering rate is bounded: a trajectory that starts straight
+    does not start at the ego (a fallback braking straight on did, unchecked). 0.004 rad is within the
+    tolerance; a car that may steer at once, the point model and an ego without a measured curvature
+    are not checked."""
+    car = _problem(STRAIGHT, CLEAN, **CAR, max_steering_rate=0.4)
+    steering = replace(car, ego=replace(car.ego, curvature=0.05))
+    assert {v.kind for v in trajectory_violations(STRAIGHT, steering, CLEAN, [])} == {ViolationKind.START}
+    nearly = replace(car, ego=replace(car.ego, curvature=0.0015))
+    assert trajectory_violations(STRAIGHT, nearly, CLEAN, []) == []
+    assert trajectory_violations(STRAIGHT, car, CLEAN, []) == []
+    at_once = replace(steering, vehicle=replace(steering.vehicle, max_steering_rate=None))
+    assert trajectory_violations(STRAIGHT, at_once, CLEAN, []) == []
+    point = _problem(STRAIGHT, CLEAN)
+    turning = replace(point, ego=replace(point.ego, curvature=0.05))
+    assert trajectory_violations(STRAIGHT, turning, CLEAN, []) == []
+
+
 @pytest.mark.parametrize(
     ("yaw", "turn", "leaves"), [(0.5, -0.15, False), (0.6, -0.15, True), (0.7, -0.2, True)]
 )

@@ -58,6 +58,8 @@ TOP_LEVEL = {"status", "message", "trajectory", "diagnostics"}
 
 #: the first point may be this far from the ego [m]
 START_TOL = 0.05
+#: the first steering angle of a car whose steering rate is bounded vs the measured one [rad]
+START_STEERING_TOL = 0.02
 #: tolerance on the time grid [s]
 TIME_TOL = 1e-6
 #: a point moves when its speed exceeds this [m/s]
@@ -264,8 +266,9 @@ def behind_at_start(problem: PlanningProblem) -> set[str]:
 def limit_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
     """The vehicle's own limits along ``traj``: while moving, ``|curvature| ≤ max_curvature`` (a car: its
     steering angle ``atan(W κ)`` within ``max_steering_angle``, default ``atan(W · max_curvature)``, and
-    its rate within ``max_steering_rate``); the lateral acceleration of the centre ``v² |κ| √(1 + (l_r
-    κ)²)`` (``l_r`` a car's rear axle offset, else 0) within ``max_lateral_acceleration``; the
+    its rate within ``max_steering_rate``, from the measured angle of a moving ego with a curvature on);
+    the lateral acceleration of the centre ``v² |κ| √(1 + (l_r κ)²)`` (``l_r`` a car's rear axle offset,
+    else 0) within ``max_lateral_acceleration``; the
     acceleration within ``[−max_deceleration, max_acceleration]`` while moving. (Not ``max_speed``: a measured
     acceleration at the start may carry a fallback past it while the planner's jerk limit releases it;
     ``ok`` answers are held to it by :func:`full_problems`.)"""
@@ -286,6 +289,12 @@ def limit_problems(problem: PlanningProblem, traj: Trajectory) -> list[str]:
             rate = np.abs(np.diff(delta)) / np.diff(traj.t)
             if np.any(rate > veh.max_steering_rate * (1 + REL_TOL) + 1e-3):
                 out.append(f"steering rate {rate.max():.3f} rad/s above {veh.max_steering_rate} rad/s")
+            measured = problem.ego.curvature
+            if measured is not None and problem.ego.speed > MOVING:
+                # it steers at the measured angle now: no other at once
+                jump = abs(float(delta[0]) - float(np.arctan(veh.wheelbase * measured)))
+                if jump > START_STEERING_TOL:
+                    out.append(f"the steering angle starts {jump:.3f} rad off the measured one")
     offset = float(veh.rear_axle_offset or 0.0) if car else 0.0
     lateral = traj.v**2 * curv * np.sqrt(1.0 + (offset * traj.curvature) ** 2)
     if np.any(lateral > veh.max_lateral_acceleration * (1 + REL_TOL) + 1e-3):
