@@ -261,7 +261,9 @@ class Ego(RequestModel):
         le=MAX_VEHICLE_CURVATURE,
         default=None,
         description="Path curvature [1/m], if known: of the centre's path; of a car's rear axle path "
-        "(tan(steering angle) / wheelbase).",
+        "(tan(steering angle) / wheelbase). A moving car whose steering rate is bounded starts every "
+        "answer at this steering angle. Unknown: taken to follow the road's, within what the vehicle "
+        "can drive at its speed.",
     )
 
 
