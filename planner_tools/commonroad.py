@@ -1205,15 +1205,24 @@ def initial_curvature(yaw_rate: float | None, speed: float, vehicle: dict[str, A
     without a yaw rate or below :data:`YAW_RATE_MIN_SPEED`. A vehicle recorded in a turn starts
     steering into it: taken as driving straight, it would have to steer faster than it can to stay in
     its lane."""
+    if yaw_rate is None or not math.isfinite(float(yaw_rate)) or speed < YAW_RATE_MIN_SPEED:
+        return None
+    limit = start_curvature_limit(speed, vehicle)
+    return float(np.clip(float(yaw_rate) / speed, -limit, limit))
+
+
+def start_curvature_limit(speed: float, vehicle: dict[str, Any]) -> float:
+    """The largest |curvature| [1/m] a converted start is given at ``speed`` [m/s]
+    (:func:`initial_curvature`): the request's ``vehicle``'s curvature limit, and
+    :data:`START_LATERAL_SHARE` of its lateral acceleration limit."""
     from planner.kinematics import lateral_curvature
     from planner.problem import Vehicle
 
-    if yaw_rate is None or not math.isfinite(float(yaw_rate)) or speed < YAW_RATE_MIN_SPEED:
-        return None
     car = Vehicle(**vehicle)
+    if speed <= 0.0:
+        return car.curvature_limit
     lateral = START_LATERAL_SHARE * car.max_lateral_acceleration / speed**2
-    limit = min(car.curvature_limit, float(lateral_curvature(lateral, car)))
-    return float(np.clip(float(yaw_rate) / speed, -limit, limit))
+    return min(car.curvature_limit, float(lateral_curvature(lateral, car)))
 
 
 def vehicle_type_car(vehicle_type: int = VEHICLE_TYPE) -> dict[str, float]:

@@ -49,6 +49,7 @@ from typing import Any
 import numpy as np
 import shapely
 
+from planner.errors import InvalidInputError
 from planner.frenet import to_frenet
 from planner.problem import Options, PlanningProblem
 from planner.reference import build_reference
@@ -62,6 +63,7 @@ from planner_tools.commonroad import (
     load,
     point_vehicle,
     scenario_name,
+    start_curvature_limit,
 )
 from planner_tools.extras import COMMONROAD
 from planner_tools.io import problem_from_json
@@ -200,8 +202,24 @@ def with_vehicle(conv: Conversion, vehicle: str) -> Conversion:
         raise CommonRoadError(f"vehicle must be one of {', '.join(VEHICLES)}, not {vehicle!r}")
     if vehicle == "request" or not isinstance(conv.request.get("vehicle"), dict):
         return conv  # a request without a vehicle: problem_from_json names the field
-    made = car_vehicle if vehicle == "car" else point_vehicle
-    return replace(conv, request={**conv.request, "vehicle": made(conv.request["vehicle"])})
+    made = (car_vehicle if vehicle == "car" else point_vehicle)(conv.request["vehicle"])
+    request = {**conv.request, "vehicle": made}
+    ego = request.get("ego")
+    if isinstance(ego, dict) and isinstance(ego.get("curvature"), (int, float)):
+        request["ego"] = {**ego, "curvature": _start_curvature(ego, made)}
+    return replace(conv, request=request)
+
+
+def _start_curvature(ego: dict[str, Any], vehicle: dict[str, Any]) -> Any:
+    """The ego's measured curvature [1/m] within ``vehicle``'s limits at its speed, as the converter holds
+    a start's (:func:`planner_tools.commonroad.start_curvature_limit`; a point model's curvature limit is
+    below a car's); as it is where the speed or the vehicle is not one the planner accepts (it then names
+    the field)."""
+    try:
+        limit = start_curvature_limit(float(ego.get("speed", 0.0)), vehicle)
+    except (TypeError, ValueError, InvalidInputError):
+        return ego["curvature"]
+    return float(np.clip(ego["curvature"], -limit, limit))
 
 
 def _goal_arc_length(request: dict[str, Any]) -> float | None:

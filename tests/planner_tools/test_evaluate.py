@@ -14,7 +14,7 @@ import pytest
 
 from planner_tools import evaluate as ev
 from planner_tools.cli import main as cli_main
-from planner_tools.commonroad import CommonRoadError
+from planner_tools.commonroad import CommonRoadError, load
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "commonroad"
 #: three shared scenes with different ends: a collision, a goal by time only, a goal missed
@@ -198,3 +198,22 @@ def test_the_readme_explains_every_column() -> None:
     readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
     missing = [name for name in ev.COLUMNS if f"| `{name}` |" not in readme]
     assert not missing, f"README's table of results.csv lacks {missing}"
+
+
+def test_a_measured_start_curvature_is_held_within_the_vehicle_it_is_driven_with() -> None:
+    """A start converted for the car (curvature 0.5 1/m at 2 m/s, within the car's 0.70 1/m) driven as the
+    point model (0.3 1/m): its curvature is that model's limit, not one it could not be driving; a
+    curvature within both limits, and the requests' own vehicle, are left as they are."""
+    conv = load(DATA / "DEU_Moabit-4_1_T-1.json")
+    turning = replace(
+        conv, request={**conv.request, "ego": {**conv.request["ego"], "speed": 2.0, "curvature": 0.5}}
+    )
+    assert ev.with_vehicle(turning, "car").request["ego"]["curvature"] == 0.5
+    point = ev.with_vehicle(turning, "point").request
+    assert point["vehicle"]["max_curvature"] < 0.5
+    assert point["ego"]["curvature"] == pytest.approx(point["vehicle"]["max_curvature"])
+    assert ev.with_vehicle(turning, "request").request["ego"]["curvature"] == 0.5
+    gentle = replace(
+        turning, request={**turning.request, "ego": {**turning.request["ego"], "curvature": -0.1}}
+    )
+    assert ev.with_vehicle(gentle, "point").request["ego"]["curvature"] == -0.1
