@@ -230,7 +230,9 @@ def unwound(
     heading and measured curvature and steers back to straight: for a car whose steering rate is bounded,
     ``κ(σ) = κ₀ − sign(κ₀)·c·min(σ, |κ₀|/c)`` with ``c = share·δ̇_max / (W·v₀)`` [1/m²] (``share`` the speed
     stage's ``steering_rate_share``), so that ``|δ̇| = W·v·|dκ/dσ| / (1 + W²κ²) ≤ share·δ̇_max`` at any speed
-    up to the start's ``v₀``; the heading ``θ₀ + κ₀·m − sign(κ₀)·c·m²/2`` with ``m = min(σ, |κ₀|/c)``.
+    up to ``v₀``: the start's, plus ``a₀²/(2·j)`` for a positive measured acceleration ``a₀`` that braking
+    releases at the emergency jerk ``j`` first; the heading ``θ₀ + κ₀·m − sign(κ₀)·c·m²/2`` with
+    ``m = min(σ, |κ₀|/c)``.
     Straight from the start (no curvature) for any other vehicle or without a measured curvature: it may
     steer at once."""
     ego, vehicle = problem.ego, problem.vehicle
@@ -239,7 +241,8 @@ def unwound(
         return np.zeros_like(sigma), np.full_like(sigma, ego.heading)
     assert vehicle.wheelbase is not None and vehicle.max_steering_rate is not None  # a car's, above
     rate = config.speed.steering_rate_share * vehicle.max_steering_rate
-    slope = rate / (vehicle.wheelbase * max(ego.speed, _SLOWEST))
+    fastest = ego.speed + max(ego.acceleration, 0.0) ** 2 / (2.0 * config.speed.emergency_jerk)
+    slope = rate / (vehicle.wheelbase * max(fastest, _SLOWEST))
     m = np.minimum(sigma, abs(kappa0) / slope)
     sign = math.copysign(1.0, kappa0)
     curvature = sign * np.maximum(abs(kappa0) - slope * sigma, 0.0)  # exactly 0 once unwound

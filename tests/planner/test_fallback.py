@@ -13,13 +13,14 @@ from hypothesis import strategies as st
 from scenario_roads import Road, arc_piece, follow_prediction, straight_piece
 from traffic import LANE, ROAD, T, car, violations
 
+from planner.config import DEFAULT_CONFIG
 from planner.ego import start_state
 from planner.fallback import fallback, severity, straight_on
 from planner.pipeline import plan
 from planner.problem import DynamicObstacle, Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
 from planner.reference import build_reference
 from planner.roads import straight, u_turn
-from planner.speed import Profile, ProfileKind
+from planner.speed import Profile, ProfileKind, braking, profile_grid
 from planner.st_bounds import static_shapes
 from planner.timing import STAGES, TOTAL
 from planner.trajectory import polyline_path
@@ -372,6 +373,28 @@ def test_the_straight_on_path_unwinds_the_measured_curvature_at_the_steering_rat
     assert np.all(path.curvature[path.sigma >= unwound_at] == 0.0)
     # the planned point is the rear axle, 1.35 m behind the centre along the yaw
     assert (path.x[0], path.y[0]) == pytest.approx((10.0 - 1.35 * np.cos(0.2), 0.5 - 1.35 * np.sin(0.2)))
+
+
+@pytest.mark.parametrize("acceleration", [-4.0, 0.0, 6.0])
+@pytest.mark.parametrize("speed", [0.6, 1.0, 2.0])
+def test_braking_straight_on_keeps_the_steering_rate_whatever_the_measured_acceleration(
+    speed: float, acceleration: float
+) -> None:
+    """Braking straight on from a car measured steering (0.05 1/m), sampled as the answer is: the steering
+    rate stays within its limit, also where braking first releases a positive acceleration (6 m/s² at the
+    emergency jerk: 0.6 m/s faster than measured). Unwound for the measured speed alone, it reached
+    0.56 rad/s for a limit of 0.4."""
+    vehicle = Vehicle(wheelbase=2.7, rear_axle_offset=1.35, max_steering_rate=0.4, max_acceleration=6.0)
+    ego = Ego(10.0, 0.5, 0.2, speed, acceleration=acceleration, curvature=0.05)
+    problem = PlanningProblem(straight(100.0, step=1.0), Lane(3.5, 3.5), ego, (), vehicle)
+    ref = build_reference(problem.reference_line)
+    path = straight_on(ref, problem)
+    steps, dt = profile_grid(problem.options, DEFAULT_CONFIG.speed)
+    profile = braking(path, problem, steps, dt, DEFAULT_CONFIG.speed)
+    traj = profile.sample(path, problem.options.dt, ref, vehicle)
+    assert traj.curvature[0] == pytest.approx(0.05, abs=1e-6)
+    steering = np.arctan(vehicle.wheelbase * traj.curvature)
+    assert np.max(np.abs(np.diff(steering)) / np.diff(traj.t)) <= 0.4
 
 
 def test_a_car_yawed_far_off_a_tight_u_turns_leg_brakes_along_its_own_heading_from_where_it_is() -> None:
