@@ -1409,7 +1409,7 @@ def recorded_as_ego(
     states = obstacle.prediction.trajectory.state_list
     last = states[-1]
     # its yaw rate over its first recorded step (a car recorded in a turn starts steering into it)
-    turned = float(np.angle(np.exp(1j * (float(states[0].orientation) - float(init.orientation)))))
+    turned = _wrap(float(states[0].orientation) - float(init.orientation))
     steps = max(int(states[0].time_step) - int(init.time_step), 1)
     start = InitialState(
         time_step=int(init.time_step),
