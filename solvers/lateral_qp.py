@@ -123,7 +123,9 @@ class LateralQPSolver:
     Where it proves the QP infeasible and OSQP had no answer, or OSQP's own certificate proves it (then
     without a second opinion), the elastic problem (:mod:`solvers.lateral_qp_elastic`) gives the path
     breaking the offset and curvature bounds least (``relaxed``: usable, not converged): an infeasible QP
-    gets the same path whether or not OSQP found out within its iterations. Otherwise OSQP's result is
+    gets the same path whether or not OSQP found out within its iterations (with ``relax=False`` the
+    proof comes back as ``infeasible`` on OSQP's result, and :meth:`relax` solves the elastic problem
+    later, for a caller that may not need it). Otherwise OSQP's result is
     returned, with the second backend's verdict beside it. A result from Clarabel carries OSQP's own as
     ``first`` (its unfinished iterate, for a caller whose checks prefer it). Every solve stops on
     iteration counts: the same problem gets the same answer.
@@ -241,8 +243,9 @@ class LateralQPSolver:
                 backend's time).
             relax: where the QP is proven infeasible (by OSQP's certificate, or by the second backend
                 where OSQP had no answer), solve the elastic problem for the least-violating path
-                (``relaxed``). False: return OSQP's result with the proof (its own, or beside it) — for
-                a caller that takes converged answers only, which the elastic path never is.
+                (``relaxed``). False: return OSQP's result with the proof (its own, or beside it;
+                ``infeasible`` set) — for a caller that takes converged answers only, which the elastic
+                path never is, or that relaxes it later only where it needs it (:meth:`relax`).
 
         Raises:
             ValueError: ``problem`` is not a :class:`LateralQPProblem`, or a limit is not positive.
@@ -337,24 +340,6 @@ class LateralQPSolver:
             )
             return LateralQPResult(info=info, d=d, dd=dd, ddd=ddd, x=x)
 
-        def relaxed(first: LateralQPResult) -> LateralQPResult:
-            """After a proof that the QP has no solution: the path that breaks its offset and curvature
-            bounds least (the elastic problem's), ``first`` beside it; ``first`` where that fails."""
-            elastic = solve_conic_qp(
-                *elastic_qp(problem),
-                max_iter=self._second_max_iter,
-                time_limit_s=None if time_limit_s is None else max(limit - _since(start), 1e-3),
-                feasibility_tol=self._feasibility_tol,
-            )
-            if not elastic.info.converged:
-                return first
-            x_z, slack = split(problem, elastic.x)
-            worst = float(np.max(slack, initial=0.0))
-            said = f"{first.info.message}; the bounds relaxed by up to {worst:.2e}"
-            elastic_status = str(elastic.info.extras["backend_status"])
-            extras.update(backend=BACKEND, backend_status=elastic_status, returned="relaxed")
-            return replace(result(x_z, SolverStatus.RELAXED, said), first=first)
-
         # a converged answer that breaks a constraint by more than the tolerance (polishing picked a wrong
         # active set, or did not run) goes too: an interior-point solve is accurate where ADMM is not
         hand_over = (
@@ -363,10 +348,13 @@ class LateralQPSolver:
             or int(info.status_val) == _INACCURATE_INFEASIBLE
         )
         proven = status is SolverStatus.INFEASIBLE and not hand_over  # OSQP's own certificate
+        remaining = None if time_limit_s is None else max(limit - _since(start), 1e-3)
         if not (self._second_backend and second_backend and (hand_over or (proven and relax))):
-            return result(x, status, message)
+            return replace(result(x, status, message), infeasible=proven)
         if proven:  # the certificate is the proof (no second opinion on it): straight to the elastic QP
-            return relaxed(result(x, status, message))
+            return self.relax(
+                problem, replace(result(x, status, message), infeasible=True), time_limit_s=remaining
+            )
         second = solve_conic_qp(
             workspace.P,
             q,
@@ -374,7 +362,7 @@ class LateralQPSolver:
             l,
             u,
             max_iter=self._second_max_iter,
-            time_limit_s=None if time_limit_s is None else max(limit - _since(start), 1e-3),
+            time_limit_s=remaining,
             feasibility_tol=self._feasibility_tol,
         )
         extras["second_status"] = str(second.info.extras["backend_status"])
@@ -387,6 +375,55 @@ class LateralQPSolver:
                 message += f" (constraints violated by up to {second.info.max_violation:.1e})"
             extras.update(backend=BACKEND, backend_status=extras["second_status"], returned="solution")
             return replace(result(second.x, second.info.status, message), first=first)
-        if status.converged or second.info.status is not SolverStatus.INFEASIBLE or not relax:
+        if status.converged or second.info.status is not SolverStatus.INFEASIBLE:
             return first  # OSQP's answer, nearly feasible, beats a proof that none is exactly
-        return relaxed(first)
+        first = replace(first, infeasible=True)
+        if not relax:
+            return first
+        remaining = None if time_limit_s is None else max(limit - _since(start), 1e-3)
+        return self.relax(problem, first, time_limit_s=remaining)
+
+    def relax(
+        self, problem: LateralQPProblem, first: LateralQPResult, *, time_limit_s: float | None = None
+    ) -> LateralQPResult:
+        """The path breaking ``problem``'s offset and curvature bounds least (the elastic problem's,
+        :mod:`solvers.lateral_qp_elastic`; ``relaxed``: usable, not converged), ``first`` beside it, after
+        a proof that ``problem`` has none (``first``, :meth:`solve`'s result with ``infeasible``: solved
+        with ``relax=False``, to relax only where the caller needs it); ``first`` itself where the elastic
+        problem does not converge. ``time_limit_s`` [s]: the second backend's safety net (None: none).
+
+        Raises:
+            ValueError: ``first`` carries no proof of infeasibility.
+        """
+        if not first.infeasible:
+            raise ValueError("first: relax() needs a result proven infeasible (solve(..., relax=False))")
+        start = time.perf_counter()
+        elastic = solve_conic_qp(
+            *elastic_qp(problem),
+            max_iter=self._second_max_iter,
+            time_limit_s=time_limit_s,
+            feasibility_tol=self._feasibility_tol,
+        )
+        if not elastic.info.converged:
+            return first
+        x, slack = split(problem, elastic.x)
+        worst = float(np.max(slack, initial=0.0))
+        _, A = qp_matrices(problem.n, problem.ds, problem.weights, problem.end_d is not None)
+        _, lower, upper = qp_vectors(problem)
+        extras = dict(first.info.extras)
+        extras.update(
+            backend=BACKEND, backend_status=str(elastic.info.extras["backend_status"]), returned="relaxed"
+        )
+        n = problem.n
+        info = replace(
+            first.info,
+            status=SolverStatus.RELAXED,
+            solve_time_ms=first.info.solve_time_ms + (time.perf_counter() - start) * 1e3,
+            objective=None,
+            message=f"{first.info.message}; the bounds relaxed by up to {worst:.2e}",
+            max_violation=max_violation(A @ x, lower, upper),
+            extras=extras,
+        )
+        return LateralQPResult(
+            info=info, d=x[:n].copy(), dd=x[n : 2 * n].copy(), ddd=x[2 * n :].copy(), x=x, first=first
+        )

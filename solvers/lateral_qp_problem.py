@@ -242,7 +242,9 @@ class LateralQPResult:
     (``info.extras["returned"]`` says which). ``info.max_violation`` is the largest violation of
     ``l ≤ Ax ≤ u`` by ``x`` (each row in its own unit: m, -, 1/m). ``x`` is the raw decision vector
     ``[d, d′, d″]``. Where a second backend's solution is returned, ``first`` is the first backend's
-    own result (its unfinished iterate, say), else None.
+    own result (its unfinished iterate, say), else None. ``infeasible`` says that the QP was proven to
+    have no solution (OSQP's certificate, or the second backend's where OSQP did not converge) and not
+    yet relaxed: :meth:`solvers.lateral_qp.LateralQPSolver.relax` gives its least-violating path.
     """
 
     info: SolveInfo
@@ -251,6 +253,7 @@ class LateralQPResult:
     ddd: FloatArray
     x: FloatArray
     first: LateralQPResult | None = None
+    infeasible: bool = False
 
 
 # --------------------------------------------------------------------------------------------------------

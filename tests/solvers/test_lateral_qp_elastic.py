@@ -93,6 +93,29 @@ def test_without_relaxation_an_unfinished_infeasible_qp_comes_back_with_the_proo
     np.testing.assert_array_equal(relaxed.first.x if relaxed.first is not None else None, result.x)
 
 
+def test_a_proof_relaxed_later_is_the_path_relaxed_at_once() -> None:
+    """``relax=False`` marks the proof (``infeasible``: Clarabel's after OSQP ran out, OSQP's own
+    certificate) and :meth:`LateralQPSolver.relax` then gives exactly what ``relax=True`` gives at once: the
+    same elastic path, status and extras, the unrelaxed result as ``first``; a result without a proof is
+    misuse."""
+    for problem, max_iter in ((_corridor(width=0.3, d0=2.0), 3), (_corridor(width=0.3, d0=2.0), 4000)):
+        proof = LateralQPSolver().solve(problem, max_iter=max_iter, relax=False)
+        assert proof.infeasible and not proof.info.converged
+        later = LateralQPSolver().relax(problem, proof)
+        at_once = LateralQPSolver().solve(problem, max_iter=max_iter)
+        assert later.info.status is at_once.info.status is SolverStatus.RELAXED
+        assert not later.infeasible and later.first is proof
+        np.testing.assert_array_equal(later.x, at_once.x)
+        assert later.info.extras == at_once.info.extras
+        assert later.info.max_violation == at_once.info.max_violation
+        assert later.info.iterations == at_once.info.iterations
+    wide = _corridor(width=3.0, d0=0.0)
+    solved = LateralQPSolver().solve(wide, relax=False)
+    assert solved.info.converged and not solved.infeasible
+    with pytest.raises(ValueError, match="proven infeasible"):
+        LateralQPSolver().relax(wide, solved)
+
+
 def test_the_elastic_matrices_are_the_ones_built_afresh() -> None:
     """The elastic problem's matrices, built once per key, are those built afresh, with each problem's own
     bounds."""
