@@ -217,7 +217,51 @@ def lateral_qp(
     smooth: bool = False,
     second_backend: bool = True,
     relax: bool = True,
+    max_iter: int | None = None,
 ) -> LateralQPResult:
+    """:func:`lateral_problem` solved (:func:`solve_lateral`)."""
+    problem = lateral_problem(bounds, d_ref, start, ref, allowance, config, rate_allowance, smooth)
+    return solve_lateral(
+        solver, problem, config, time_limit_s, second_backend=second_backend, relax=relax, max_iter=max_iter
+    )
+
+
+def solve_lateral(
+    solver: LateralQPSolver,
+    problem: LateralQPProblem,
+    config: LateralConfig,
+    time_limit_s: float | None = None,
+    *,
+    second_backend: bool = True,
+    relax: bool = True,
+    max_iter: int | None = None,
+) -> LateralQPResult:
+    """``problem`` solved by ``solver`` from a cold start within ``max_iter`` OSQP iterations (None:
+    ``config.max_iter``) and ``time_limit_s`` [s] (None: none). ``second_backend``: what OSQP does not
+    converge on goes to the solver's second backend; ``relax``: an infeasible QP gets the elastic
+    problem's least-violating path (False: the proof only, ``infeasible``; :meth:`LateralQPSolver.relax`
+    relaxes it later)."""
+    # cold: the answer must not depend on what this process planned before
+    return solver.solve(
+        problem,
+        max_iter=config.max_iter if max_iter is None else max_iter,
+        time_limit_s=time_limit_s,
+        warm_start=False,
+        second_backend=second_backend,
+        relax=relax,
+    )
+
+
+def lateral_problem(
+    bounds: LateralBounds,
+    d_ref: FloatArray,
+    start: EgoFrenet,
+    ref: ReferenceLine,
+    allowance: FloatArray,
+    config: LateralConfig,
+    rate_allowance: FloatArray | None = None,
+    smooth: bool = False,
+) -> LateralQPProblem:
     """Piecewise-jerk QP on ``d(s)``; ``d″`` bounds linearised at ``d_ref`` keep ``|κ_path| ≤ allowance``,
     the jerk ``|d‴| ≤ jerk`` and, when given, ``|dκ_path/dσ| ≤ rate_allowance`` (per knot).
 
@@ -230,9 +274,7 @@ def lateral_qp(
     reference's own changes of curvature (a fitted polyline's ripple) where they alone would turn the
     wheel too fast. With ``smooth`` (and a rate allowance) the jerk term costs the path's own curvature
     rate rather than the offset's (:func:`reference_jerk`): the path eases into the reference's bends
-    (a car's steering cannot jump), cutting them within the bounds. ``second_backend``: what OSQP does
-    not converge on goes to the solver's second backend; ``relax``: an infeasible QP gets the elastic
-    problem's least-violating path (:meth:`LateralQPSolver.solve`).
+    (a car's steering cannot jump), cutting them within the bounds.
     """
     s = bounds.s
     lower = bounds.lower + config.qp_slack
@@ -246,7 +288,7 @@ def lateral_qp(
     if rate_allowance is not None:  # a car whose steering rate is bounded: its path's curvature rate
         jerk_lower, jerk_upper = jerk_bounds(s, kappa, one, rate_allowance, config.jerk)
         jerk_ref = reference_jerk(s, kappa, one) if smooth else None
-    problem = LateralQPProblem(
+    return LateralQPProblem(
         ds=float(s[1] - s[0]),
         d_lower=lower,
         d_upper=upper,
@@ -260,15 +302,6 @@ def lateral_qp(
         ddd0=start.ddd,
         ddd_lower=ddd_lower,
         ddd_upper=ddd_upper,
-    )
-    # cold: the answer must not depend on what this process planned before
-    return solver.solve(
-        problem,
-        max_iter=config.max_iter,
-        time_limit_s=time_limit_s,
-        warm_start=False,
-        second_backend=second_backend,
-        relax=relax,
     )
 
 
@@ -573,7 +606,10 @@ def _attempt_at(
         eased = _eased(solver, ref, problem, start, corridor, allowance, rate, time_left, config, paths)
         if eased is not None:
             return _Attempt(corridor, eased, lambda: True)
-    qp = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate)
+    qp_problem = lateral_problem(bounds, d_ref, start, ref, allowance, config.lateral, rate)
+    # an infeasible QP is relaxed below only where the retry does not answer (the elastic problem is the
+    # stage's costliest solve, and its path loses to the retry's exact one in the lane)
+    qp = solve_lateral(solver, qp_problem, config.lateral, time_left(), relax=False)
     if qp.info.converged and qp.first is None:  # OSQP solved it: nothing to choose from
         return _Attempt(corridor, qp, lambda: paths.in_lane(bounds.s, qp, corridor.surface))
     if qp.info.converged and paths.in_lane(bounds.s, qp, corridor.surface):
@@ -584,14 +620,29 @@ def _attempt_at(
     # footprint in the lane is taken.
     options = [r for r in (qp, qp.first) if r is not None and r.info.usable]
     inside = [paths.in_lane(bounds.s, r, corridor.surface) for r in options]
+    retry, more, more_inside = None, [], []
     if not qp.info.converged and not any(inside) and time_for(time_left, qp.info.solve_time_ms):
         # too fast for the road, or no path in the lane: try the vehicle's own curvature limit
         limit = config.lateral.retry_curvature_share * problem.vehicle.curvature_limit
         allowance = np.full(bounds.s.shape, limit)
         retry = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate)
         more = [r for r in (retry, retry.first) if r is not None and r.info.usable]
-        inside += [paths.in_lane(bounds.s, r, corridor.surface) for r in more]
-        options = options + more
+        more_inside = [paths.in_lane(bounds.s, r, corridor.surface) for r in more]
+    # the retry answers with an exact path in the lane the vehicle can turn along: no need to relax
+    answered = any(
+        r.info.converged and i and _turnable(paths.path(bounds.s, r), problem.vehicle)
+        for r, i in zip(more, more_inside, strict=True)
+    )
+    if qp.infeasible and not answered:
+        # the least-violating path, before OSQP's iterate (the order the choice below breaks ties in)
+        relaxed = solver.relax(qp_problem, qp, time_limit_s=time_left())
+        if relaxed is not qp:
+            in_lane = paths.in_lane(bounds.s, relaxed, corridor.surface)
+            options, inside, qp = [relaxed, *options], [in_lane, *inside], relaxed
+            if in_lane:  # taken as it is: the retry is for where no path keeps to the lane
+                retry, more, more_inside = None, [], []
+    options, inside = options + more, inside + more_inside
+    if retry is not None:
         qp = retry if not options or not qp.info.usable else qp
     if options:
         ranked = max(range(len(options)), key=lambda i: (inside[i], options[i].info.converged, -i))

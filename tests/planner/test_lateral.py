@@ -197,8 +197,17 @@ def test_a_car_eases_into_a_bend_its_steering_cannot_take_at_once() -> None:
     solver = LateralQPSolver()
 
     def steepest(smooth: bool) -> tuple[float, np.ndarray]:
-        qp = lateral_qp(solver, bounds, np.zeros(s.shape), start, ref, allowance, DEFAULT_CONFIG.lateral,
-                        rate_allowance=rate, smooth=smooth)
+        qp = lateral_qp(
+            solver,
+            bounds,
+            np.zeros(s.shape),
+            start,
+            ref,
+            allowance,
+            DEFAULT_CONFIG.lateral,
+            rate_allowance=rate,
+            smooth=smooth,
+        )
         assert qp.info.converged, qp.info
         assert np.all(qp.d >= -1.5 - 1e-3) and np.all(qp.d <= 1.5 + 1e-3)
         path = frenet_path(ref, s, qp.d, qp.dd, qp.ddd)
@@ -285,6 +294,30 @@ def test_carpi_near_the_references_end_plans_a_path_in_the_lane() -> None:
     result = plan(_recorded("ITA_CarpiCentro-9_6_T-1", 16.0, ego))
     assert result.status == "ok", result.message
     assert result.diagnostics.lateral_qp.status in CONVERGED
+
+
+def test_an_infeasible_qp_the_retry_answers_is_not_relaxed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """DEU_Flensburg-58's first request: the QP at the speed's curvature allowance has no solution, and
+    the retry at the vehicle's own limit gives an exact path in the lane. The elastic problem (the
+    stage's costliest solve, its least-violating path would lose to the retry's) is not solved, and the
+    answer is the one of a stage that relaxes every proven-infeasible QP at once."""
+    problem = problem_from_json(json.loads((DATA / "DEU_Flensburg-58_1_T-1.json").read_text()))
+    relaxed = counted_calls(monkeypatch, LateralQPSolver, "relax")
+    lazy = plan(problem)
+    assert relaxed == [] and lazy.diagnostics.lateral_qp.status is SolverStatus.SOLVED
+    solve = LateralQPSolver.solve
+
+    def at_once(self: LateralQPSolver, qp: object, **kwargs: object) -> object:
+        return solve(self, qp, **{**kwargs, "relax": True})  # type: ignore[arg-type]
+
+    monkeypatch.setattr(LateralQPSolver, "solve", at_once)
+    eager = plan(problem)
+    assert len(relaxed) >= 1  # the elastic path was there to choose from, and lost
+    assert (eager.status, eager.message) == (lazy.status, lazy.message)
+    for field_name in ("x", "y", "v", "a", "curvature", "heading"):
+        np.testing.assert_array_equal(
+            getattr(eager.trajectory, field_name), getattr(lazy.trajectory, field_name)
+        )
 
 
 def test_lohmar_tight_right_turn_has_a_feasible_corridor() -> None:
