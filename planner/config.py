@@ -55,6 +55,10 @@ class LateralConfig:
     #: solves converge within it, and what does not (a tight or empty corridor: thousands) an interior
     #: point method settles in tens (a count, not a time: the same request gets the same answer)
     max_iter: int = 200
+    #: OSQP iterations of the optional straighter path's QP (:func:`planner.lateral.straight_allowance`;
+    #: no second backend): on the closed loops of the CommonRoad scenes it converged within 75 where it
+    #: converged exactly, and ran out of 200 where a real bend cannot be driven straighter (3–4 ms each)
+    straight_max_iter: int = 100
     #: the candidate's slope is averaged over this window to give the heading error of the bounds [m]
     heading_window: float = 4.0
     #: share of ``max_curvature`` the QP's curvature bound allows [-]

@@ -562,6 +562,7 @@ def _attempt(
         rate,
         smooth=True,
         second_backend=False,
+        max_iter=config.lateral.straight_max_iter,
     )
     if not (qp.info.converged and paths.in_lane(bounds.s, qp, corridor.surface)):
         return first

@@ -471,6 +471,29 @@ def test_a_jog_in_a_lane_without_room_is_followed_as_before() -> None:
     assert np.max(traj.v**2 * np.abs(traj.curvature)) <= CAR.max_lateral_acceleration + 1e-6
 
 
+def test_the_straighter_path_gets_its_own_iterations_and_no_second_backend(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The straighter path is optional: its QP gets ``straight_max_iter`` OSQP iterations (fewer than a
+    required QP's ``max_iter``) and no second backend; the jog is still driven straight within them."""
+    problem = PlanningProblem(
+        _jog(), Lane(4.0, 4.0), Ego(100.0, 0.0, 0.0, speed=20.0), (), CAR, Options(target_speed=20.0)
+    )
+    asked: list[tuple[int, bool]] = []
+    solve = LateralQPSolver.solve
+
+    def spy(self: LateralQPSolver, qp: object, **kwargs: object) -> object:
+        asked.append((int(kwargs["max_iter"]), bool(kwargs["second_backend"])))  # type: ignore[call-overload]
+        return solve(self, qp, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(LateralQPSolver, "solve", spy)
+    result = plan(problem)
+    config = DEFAULT_CONFIG.lateral
+    assert config.straight_max_iter < config.max_iter
+    assert asked == [(config.max_iter, True), (config.straight_max_iter, False)]
+    assert result.status == "ok" and np.min(result.trajectory.v) > 19.5
+
+
 def test_bounds_with_the_knots_geometry_given_are_the_bounds_computed_whole() -> None:
     """The lateral stage computes the turning limits and corners at its knots once for the corridor with
     its lane margin and without (:func:`planner.bounds.knot_geometry`): the bounds are the same numbers as
