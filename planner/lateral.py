@@ -379,11 +379,22 @@ class _Attempt:
     corridor: _Corridor
     qp: LateralQPResult
     lane_check: Callable[[], bool]
+    #: where the QP was proven infeasible and its least-violating path is left for later: the attempt with
+    #: it weighed in (:meth:`settled`); ``qp`` is then the unrelaxed answer, never converged
+    settle: Callable[[], _Attempt] | None = None
 
     @cached_property
     def in_lane(self) -> bool:
         """Whether the path keeps the footprint in the lane at its knots."""
         return self.lane_check()
+
+    def settled(self) -> _Attempt:
+        """This attempt with its least-violating path weighed in, where that was left for later."""
+        return self if self.settle is None else self.settle()
+
+    def best_rank(self) -> tuple[float, bool, bool]:
+        """:meth:`rank`, or the highest settling can give (not solved; in the lane, say)."""
+        return self.rank() if self.settle is None else (self.corridor.far, True, False)
 
     def better_than_unsolved(self) -> bool:
         """Solved, with no block on the way other than the road's end."""
@@ -634,22 +645,35 @@ def _attempt_at(
         r.info.converged and i and _turnable(paths.path(bounds.s, r), problem.vehicle)
         for r, i in zip(more, more_inside, strict=True)
     )
-    if qp.infeasible and not answered:
-        # the least-violating path, before OSQP's iterate (the order the choice below breaks ties in)
-        relaxed = solver.relax(qp_problem, qp, time_limit_s=time_left())
-        if relaxed is not qp:
-            in_lane = paths.in_lane(bounds.s, relaxed, corridor.surface)
-            options, inside, qp = [relaxed, *options], [in_lane, *inside], relaxed
-            if in_lane:  # taken as it is: the retry is for where no path keeps to the lane
-                retry, more, more_inside = None, [], []
-    options, inside = options + more, inside + more_inside
-    if retry is not None:
-        qp = retry if not options or not qp.info.usable else qp
-    if options:
-        ranked = max(range(len(options)), key=lambda i: (inside[i], options[i].info.converged, -i))
-        qp = options[ranked]
-    found = any(inside)
-    return _Attempt(corridor, qp, lambda: found)
+
+    def choice(relax: bool) -> _Attempt:
+        """The first in the lane, then solved, of the answers (with the least-violating path first where
+        ``relax``)."""
+        nonlocal qp, retry, options, inside, more, more_inside
+        if relax:
+            # the least-violating path, before OSQP's iterate (the order the choice breaks ties in)
+            relaxed = solver.relax(qp_problem, qp, time_limit_s=time_left())
+            if relaxed is not qp:
+                in_lane = paths.in_lane(bounds.s, relaxed, corridor.surface)
+                options, inside, qp = [relaxed, *options], [in_lane, *inside], relaxed
+                if in_lane:  # taken as it is: the retry is for where no path keeps to the lane
+                    retry, more, more_inside = None, [], []
+        options, inside = options + more, inside + more_inside
+        if retry is not None:
+            qp = retry if not options or not qp.info.usable else qp
+        if options:
+            ranked = max(range(len(options)), key=lambda i: (inside[i], options[i].info.converged, -i))
+            qp = options[ranked]
+        found = any(inside)
+        return _Attempt(corridor, qp, lambda: found)
+
+    if not qp.infeasible or answered:
+        return choice(relax=False)
+    if any(r.info.converged for r in more):
+        return choice(relax=True)
+    # nothing here converged, whatever relaxing adds: the stage may find a better attempt before it needs
+    # this one's least-violating path (:meth:`_Attempt.settled`)
+    return _Attempt(corridor, qp, lambda: any(inside + more_inside), settle=lambda: choice(relax=True))
 
 
 def _eased(
@@ -855,10 +879,17 @@ def lateral_stage(
         # dropped, as it is knot by knot where the lane is narrow (the margin to obstacles is kept).
         # Its QP is solved only where it could rank higher: a farther block, or a first QP unsolved.
         relaxed = _corridor(ref, problem, start, at, d_ref, boxes, 0.0, config, surface, shared)
-        if (relaxed.far, True, True) > attempt.rank():
+        # (an attempt left to settle is never solved: whether it is in the lane decides nothing here)
+        if (relaxed.far, True, True) > attempt.best_rank():
             retry = _attempt(solver, ref, problem, start, relaxed, time_left, config, braking_share, paths)
-            if retry.rank() > attempt.rank():
-                attempt = retry
+            retry = retry.settled()
+            if retry.rank() > attempt.best_rank():
+                attempt = retry  # better whatever the first's least-violating path: it is not needed
+            else:
+                attempt = attempt.settled()
+                if retry.rank() > attempt.rank():
+                    attempt = retry
+    attempt = attempt.settled()
     bounds, qp, road_end = attempt.corridor.bounds, attempt.qp, attempt.corridor.road_end
     # An unfinished iterate comes integrated from the initial state, a relaxed path breaks some bounds:
     # the checks decide, but where it leaves the lane or turns more sharply than the vehicle can (a
