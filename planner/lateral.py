@@ -16,6 +16,7 @@ offset and the speed profile stops before the block (:func:`hold_path`).
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -610,7 +611,9 @@ def _attempt_at(
     curvature-rate ``rate`` [1/m²] per knot (:func:`curvature_allowance`,
     :func:`curvature_rate_allowance`), again with the vehicle's own curvature limit where the
     speed-dependent one leaves no solution or none that keeps the footprint in the lane; of the answers
-    (and OSQP's own iterates beside the second backend's), the first in the lane, then solved."""
+    (and OSQP's own iterates beside the second backend's), the first in the lane, then solved. Where the
+    QP was proven infeasible and no answer converged, the attempt comes back unsettled (its
+    least-violating path not yet solved for, :meth:`_Attempt.settled`)."""
     bounds, d_ref = corridor.bounds, corridor.d_ref
     if rate is not None:
         # a car whose steering rate is bounded eases into the reference's bends where that keeps its
@@ -619,8 +622,9 @@ def _attempt_at(
         if eased is not None:
             return _Attempt(corridor, eased, lambda: True)
     qp_problem = lateral_problem(bounds, d_ref, start, ref, allowance, config.lateral, rate)
-    # an infeasible QP is relaxed below only where the retry does not answer (the elastic problem is the
-    # stage's costliest solve, and its path loses to the retry's exact one in the lane)
+    # An infeasible QP's least-violating path (the elastic problem: the stage's costliest solve) is
+    # solved only where it may be chosen: not where the retry answers, and not before the stage knows it
+    # needs this attempt (then it comes back unsettled: :meth:`_Attempt.settled`).
     qp = solve_lateral(solver, qp_problem, config.lateral, time_left(), relax=False)
     if qp.info.converged and qp.first is None:  # OSQP solved it: nothing to choose from
         return _Attempt(corridor, qp, lambda: paths.in_lane(bounds.s, qp, corridor.surface))
@@ -673,7 +677,8 @@ def _attempt_at(
         return choice(relax=True)
     # nothing here converged, whatever relaxing adds: the stage may find a better attempt before it needs
     # this one's least-violating path (:meth:`_Attempt.settled`)
-    return _Attempt(corridor, qp, lambda: any(inside + more_inside), settle=lambda: choice(relax=True))
+    settled = functools.cache(lambda: choice(relax=True))
+    return _Attempt(corridor, qp, lambda: settled().in_lane, settle=settled)
 
 
 def _eased(
