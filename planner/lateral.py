@@ -612,8 +612,8 @@ def _attempt_at(
     :func:`curvature_rate_allowance`), again with the vehicle's own curvature limit where the
     speed-dependent one leaves no solution or none that keeps the footprint in the lane; of the answers
     (and OSQP's own iterates beside the second backend's), the first in the lane, then solved. Where the
-    QP was proven infeasible and no answer converged, the attempt comes back unsettled (its
-    least-violating path not yet solved for, :meth:`_Attempt.settled`)."""
+    QP was proven infeasible and OSQP's iterate keeps to the lane (no retry follows), the attempt comes
+    back unsettled (its least-violating path not yet solved for, :meth:`_Attempt.settled`)."""
     bounds, d_ref = corridor.bounds, corridor.d_ref
     if rate is not None:
         # a car whose steering rate is bounded eases into the reference's bends where that keeps its
@@ -623,8 +623,7 @@ def _attempt_at(
             return _Attempt(corridor, eased, lambda: True)
     qp_problem = lateral_problem(bounds, d_ref, start, ref, allowance, config.lateral, rate)
     # An infeasible QP's least-violating path (the elastic problem: the stage's costliest solve) is
-    # solved only where it may be chosen: not where the retry answers, and not before the stage knows it
-    # needs this attempt (then it comes back unsettled: :meth:`_Attempt.settled`).
+    # solved only once the stage needs this attempt where that can wait (:meth:`_Attempt.settled`).
     qp = solve_lateral(solver, qp_problem, config.lateral, time_left(), relax=False)
     if qp.info.converged and qp.first is None:  # OSQP solved it: nothing to choose from
         return _Attempt(corridor, qp, lambda: paths.in_lane(bounds.s, qp, corridor.surface))
@@ -636,49 +635,52 @@ def _attempt_at(
     # footprint in the lane is taken.
     options = [r for r in (qp, qp.first) if r is not None and r.info.usable]
     inside = [paths.in_lane(bounds.s, r, corridor.surface) for r in options]
-    retry, more, more_inside = None, [], []
+
+    def relaxed_first() -> None:
+        """The least-violating path, before OSQP's iterate (the order the choice breaks ties in)."""
+        nonlocal qp, options, inside
+        relaxed = solver.relax(qp_problem, qp, time_limit_s=time_left())
+        if relaxed is not qp:
+            options, inside = (
+                [relaxed, *options],
+                [paths.in_lane(bounds.s, relaxed, corridor.surface), *inside],
+            )
+            qp = relaxed
+
+    if qp.infeasible and any(inside):
+        # OSQP's iterate keeps to the lane, so no retry follows whatever the least-violating path does,
+        # and nothing here is solved: the choice between the two can wait until the stage needs it
+        def settle() -> _Attempt:
+            relaxed_first()
+            return _ranked(corridor, options, inside, qp)
+
+        settled = functools.cache(settle)
+        return _Attempt(corridor, qp, lambda: settled().in_lane, settle=settled)
+    if qp.infeasible:
+        relaxed_first()
     if not qp.info.converged and not any(inside) and time_for(time_left, qp.info.solve_time_ms):
         # too fast for the road, or no path in the lane: try the vehicle's own curvature limit
         limit = config.lateral.retry_curvature_share * problem.vehicle.curvature_limit
         allowance = np.full(bounds.s.shape, limit)
         retry = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate)
         more = [r for r in (retry, retry.first) if r is not None and r.info.usable]
-        more_inside = [paths.in_lane(bounds.s, r, corridor.surface) for r in more]
-    # the retry answers with an exact path in the lane the vehicle can turn along: no need to relax
-    answered = any(
-        r.info.converged and i and _turnable(paths.path(bounds.s, r), problem.vehicle)
-        for r, i in zip(more, more_inside, strict=True)
-    )
+        inside += [paths.in_lane(bounds.s, r, corridor.surface) for r in more]
+        options = options + more
+        qp = retry if not options or not qp.info.usable else qp
+    return _ranked(corridor, options, inside, qp)
 
-    def choice(relax: bool) -> _Attempt:
-        """The first in the lane, then solved, of the answers (with the least-violating path first where
-        ``relax``)."""
-        nonlocal qp, retry, options, inside, more, more_inside
-        if relax:
-            # the least-violating path, before OSQP's iterate (the order the choice breaks ties in)
-            relaxed = solver.relax(qp_problem, qp, time_limit_s=time_left())
-            if relaxed is not qp:
-                in_lane = paths.in_lane(bounds.s, relaxed, corridor.surface)
-                options, inside, qp = [relaxed, *options], [in_lane, *inside], relaxed
-                if in_lane:  # taken as it is: the retry is for where no path keeps to the lane
-                    retry, more, more_inside = None, [], []
-        options, inside = options + more, inside + more_inside
-        if retry is not None:
-            qp = retry if not options or not qp.info.usable else qp
-        if options:
-            ranked = max(range(len(options)), key=lambda i: (inside[i], options[i].info.converged, -i))
-            qp = options[ranked]
-        found = any(inside)
-        return _Attempt(corridor, qp, lambda: found)
 
-    if not qp.infeasible or answered:
-        return choice(relax=False)
-    if any(r.info.converged for r in more):
-        return choice(relax=True)
-    # nothing here converged, whatever relaxing adds: the stage may find a better attempt before it needs
-    # this one's least-violating path (:meth:`_Attempt.settled`)
-    settled = functools.cache(lambda: choice(relax=True))
-    return _Attempt(corridor, qp, lambda: settled().in_lane, settle=settled)
+def _ranked(
+    corridor: _Corridor, options: list[LateralQPResult], inside: list[bool], fallback: LateralQPResult
+) -> _Attempt:
+    """The attempt with the first of ``options`` in the lane (``inside``), then solved; ``fallback``
+    where there is no option."""
+    qp = fallback
+    if options:
+        ranked = max(range(len(options)), key=lambda i: (inside[i], options[i].info.converged, -i))
+        qp = options[ranked]
+    found = any(inside)
+    return _Attempt(corridor, qp, lambda: found)
 
 
 def _eased(

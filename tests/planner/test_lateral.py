@@ -297,18 +297,22 @@ def test_carpi_near_the_references_end_plans_a_path_in_the_lane() -> None:
 
 
 @pytest.mark.parametrize("scene", ["DEU_Flensburg-58_1_T-1", "DEU_Lohmar-26_1_T-1"])
-def test_an_infeasible_qp_a_later_solve_answers_is_not_relaxed(
+def test_an_infeasible_qp_is_relaxed_only_where_its_path_may_be_chosen(
     monkeypatch: pytest.MonkeyPatch, scene: str
 ) -> None:
-    """The first requests of two scenes whose QP at the speed's curvature allowance has no solution: at
-    DEU_Flensburg-58 the retry at the vehicle's own limit gives an exact path in the lane, at DEU_Lohmar-26
-    the corridor without the lane margin does. The elastic problem (the stage's costliest solve, its
-    least-violating path would lose to either) is not solved, and the answer is the one of a stage that
-    relaxes every proven-infeasible QP at once."""
+    """The first requests of two scenes whose QP at the speed's curvature allowance has no solution. At
+    DEU_Lohmar-26 OSQP's iterate keeps to the lane (no retry at the vehicle's own limit follows) and the
+    corridor without the lane margin gives a solved path that wins whatever the least-violating one
+    does: the elastic problem (the stage's costliest solve) is not solved. At DEU_Flensburg-58 it is: only
+    where that path leaves the lane does the retry run (a relaxed path in the lane is taken before a
+    retry's, whose sharper turns the speed may not allow). Either way the answer is the one of a stage
+    that relaxes every proven-infeasible QP at once."""
     problem = problem_from_json(json.loads((DATA / f"{scene}.json").read_text()))
     relaxed = counted_calls(monkeypatch, LateralQPSolver, "relax")
     lazy = plan(problem)
-    assert relaxed == [] and lazy.diagnostics.lateral_qp.status in CONVERGED
+    assert len(relaxed) == (0 if scene == "DEU_Lohmar-26_1_T-1" else 1)
+    assert lazy.diagnostics.lateral_qp.status in CONVERGED
+    relaxed.clear()
     solve = LateralQPSolver.solve
 
     def at_once(self: LateralQPSolver, qp: object, **kwargs: object) -> object:
