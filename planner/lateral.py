@@ -169,7 +169,7 @@ def straight_allowance(
 
 def path_curvature(ref: ReferenceLine, s: FloatArray, qp: LateralQPResult) -> FloatArray:
     """The curvature [1/m] of the QP's path at its knots ``s`` [m], for small ``d′``:
-    ``(d″/(1 − κd) + κ)/(1 − κd)`` (see :func:`lateral_qp`)."""
+    ``(d″/(1 − κd) + κ)/(1 − κd)`` (see :func:`lateral_problem`)."""
     kappa = ref.kappa_at(s)
     one = np.maximum(1.0 - kappa * qp.d, 1e-6)
     return np.asarray((qp.ddd / one + kappa) / one)
@@ -178,7 +178,7 @@ def path_curvature(ref: ReferenceLine, s: FloatArray, qp: LateralQPResult) -> Fl
 def reference_jerk(s: FloatArray, kappa: FloatArray, one: FloatArray) -> FloatArray:
     """The jerk ``d‴`` [1/m²] per interval of knots ``s`` [m] that evens out the reference's own change
     of curvature (``κ`` [1/m], ``1 − κd`` at the knots): ``−(1 − κd)² Δ(κ/(1 − κd)) / Δs``, the smaller
-    ``1 − κd`` of the interval's ends (see :func:`lateral_qp`)."""
+    ``1 − κd`` of the interval's ends (see :func:`lateral_problem`)."""
     stretch = np.minimum(one[:-1], one[1:])
     return np.asarray(-(stretch**2) * np.diff(kappa / one) / np.diff(s))
 
@@ -188,7 +188,7 @@ def jerk_bounds(
 ) -> tuple[FloatArray, FloatArray]:
     """Bounds on ``d‴`` [1/m²] per interval of knots ``s`` [m] (reference curvature ``κ`` [1/m] and
     ``1 − κd`` there) within ``±jerk`` that keep the path's ``|dκ_x/dσ|`` within ``rate`` [1/m²] at the
-    interval's first knot (see :func:`lateral_qp`): ``d‴ ∈ r ± rate·(1 − κd)³`` about the
+    interval's first knot (see :func:`lateral_problem`): ``d‴ ∈ r ± rate·(1 − κd)³`` about the
     :func:`reference_jerk` ``r``.
     Where the reference's own change is steeper than that, the bounds still include 0 (following the
     reference; the speed profile slows for it), so that holding ``d″`` stays feasible."""
@@ -203,28 +203,6 @@ def jerk_bounds(
     lower = np.clip(np.minimum(lo, 0.0), -jerk, 0.0)
     upper = np.clip(np.maximum(hi, 0.0), 0.0, jerk)
     return np.asarray(lower), np.asarray(upper)
-
-
-def lateral_qp(
-    solver: LateralQPSolver,
-    bounds: LateralBounds,
-    d_ref: FloatArray,
-    start: EgoFrenet,
-    ref: ReferenceLine,
-    allowance: FloatArray,
-    config: LateralConfig,
-    time_limit_s: float | None = None,
-    rate_allowance: FloatArray | None = None,
-    smooth: bool = False,
-    second_backend: bool = True,
-    relax: bool = True,
-    max_iter: int | None = None,
-) -> LateralQPResult:
-    """:func:`lateral_problem` solved (:func:`solve_lateral`)."""
-    problem = lateral_problem(bounds, d_ref, start, ref, allowance, config, rate_allowance, smooth)
-    return solve_lateral(
-        solver, problem, config, time_limit_s, second_backend=second_backend, relax=relax, max_iter=max_iter
-    )
 
 
 def solve_lateral(
@@ -562,17 +540,11 @@ def _attempt(
     if not np.any(bent[ahead]):
         return first
     # optional: what OSQP does not settle within its iterations is not worth the second backend's time
-    qp = lateral_qp(
+    qp = solve_lateral(
         solver,
-        bounds,
-        corridor.d_ref,
-        start,
-        ref,
-        straight,
+        lateral_problem(bounds, corridor.d_ref, start, ref, straight, config.lateral, rate, smooth=True),
         config.lateral,
         time_left(),
-        rate,
-        smooth=True,
         second_backend=False,
         max_iter=config.lateral.straight_max_iter,
     )
@@ -662,7 +634,8 @@ def _attempt_at(
         # too fast for the road, or no path in the lane: try the vehicle's own curvature limit
         limit = config.lateral.retry_curvature_share * problem.vehicle.curvature_limit
         allowance = np.full(bounds.s.shape, limit)
-        retry = lateral_qp(solver, bounds, d_ref, start, ref, allowance, config.lateral, time_left(), rate)
+        retry_problem = lateral_problem(bounds, d_ref, start, ref, allowance, config.lateral, rate)
+        retry = solve_lateral(solver, retry_problem, config.lateral, time_left())
         more = [r for r in (retry, retry.first) if r is not None and r.info.usable]
         inside += [paths.in_lane(bounds.s, r, corridor.surface) for r in more]
         options = options + more
@@ -695,7 +668,7 @@ def _eased(
     config: PlannerConfig,
     paths: _Paths,
 ) -> LateralQPResult | None:
-    """A car's lateral QP in ``corridor`` that eases into the reference's bends (:func:`lateral_qp`'s
+    """A car's lateral QP in ``corridor`` that eases into the reference's bends (:func:`lateral_problem`'s
     ``smooth``, within the curvature ``allowance`` [1/m] and curvature-rate ``rate`` [1/m²] per knot),
     when it converges and its path keeps the footprint in the lane; else None.
 
@@ -715,17 +688,11 @@ def _eased(
     drive at a crawl, the speed profile braking hard for it."""
     bounds = corridor.bounds if corridor.eased is None else corridor.eased
     for repair in (False, True):
-        qp = lateral_qp(
+        qp = solve_lateral(
             solver,
-            bounds,
-            corridor.d_ref,
-            start,
-            ref,
-            allowance,
+            lateral_problem(bounds, corridor.d_ref, start, ref, allowance, config.lateral, rate, smooth=True),
             config.lateral,
             time_left(),
-            rate,
-            smooth=True,
             relax=False,  # only a converged answer is taken: no least-violating path for a proof
         )
         if not qp.info.converged:

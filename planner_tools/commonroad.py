@@ -78,7 +78,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import gaussian_filter1d, grey_closing
 
 from planner.collision import STATIC_MOTION
-from planner.problem import CAR_FIELDS
+from planner.kinematics import lateral_curvature
+from planner.problem import CAR_FIELDS, Vehicle
 from planner.reference import FloatArray
 from planner_tools.extras import COMMONROAD, MissingExtraError
 
@@ -1215,9 +1216,6 @@ def start_curvature_limit(speed: float, vehicle: dict[str, Any]) -> float:
     """The largest |curvature| [1/m] a converted start is given at ``speed`` [m/s]
     (:func:`initial_curvature`): the request's ``vehicle``'s curvature limit, and
     :data:`START_LATERAL_SHARE` of its lateral acceleration limit."""
-    from planner.kinematics import lateral_curvature
-    from planner.problem import Vehicle
-
     car = Vehicle(**vehicle)
     if speed <= 0.0:
         return car.curvature_limit

@@ -348,12 +348,16 @@ class LateralQPSolver:
             or int(info.status_val) == _INACCURATE_INFEASIBLE
         )
         proven = status is SolverStatus.INFEASIBLE and not hand_over  # OSQP's own certificate
-        remaining = None if time_limit_s is None else max(limit - _since(start), 1e-3)
+
+        def remaining() -> float | None:
+            """What is left of ``time_limit_s`` for the second backend [s] (None: no limit)."""
+            return None if time_limit_s is None else max(limit - _since(start), 1e-3)
+
         if not (self._second_backend and second_backend and (hand_over or (proven and relax))):
             return replace(result(x, status, message), infeasible=proven)
         if proven:  # the certificate is the proof (no second opinion on it): straight to the elastic QP
             return self.relax(
-                problem, replace(result(x, status, message), infeasible=True), time_limit_s=remaining
+                problem, replace(result(x, status, message), infeasible=True), time_limit_s=remaining()
             )
         second = solve_conic_qp(
             workspace.P,
@@ -362,7 +366,7 @@ class LateralQPSolver:
             l,
             u,
             max_iter=self._second_max_iter,
-            time_limit_s=remaining,
+            time_limit_s=remaining(),
             feasibility_tol=self._feasibility_tol,
         )
         extras["second_status"] = str(second.info.extras["backend_status"])
@@ -380,8 +384,7 @@ class LateralQPSolver:
         first = replace(first, infeasible=True)
         if not relax:
             return first
-        remaining = None if time_limit_s is None else max(limit - _since(start), 1e-3)
-        return self.relax(problem, first, time_limit_s=remaining)
+        return self.relax(problem, first, time_limit_s=remaining())
 
     def relax(
         self, problem: LateralQPProblem, first: LateralQPResult, *, time_limit_s: float | None = None

@@ -37,8 +37,9 @@ from planner.lateral import (
     curvature_rate_allowance,
     jerk_bounds,
     knots,
-    lateral_qp,
+    lateral_problem,
     reference_jerk,
+    solve_lateral,
     straight_allowance,
 )
 from planner.pipeline import plan
@@ -197,17 +198,9 @@ def test_a_car_eases_into_a_bend_its_steering_cannot_take_at_once() -> None:
     solver = LateralQPSolver()
 
     def steepest(smooth: bool) -> tuple[float, np.ndarray]:
-        qp = lateral_qp(
-            solver,
-            bounds,
-            np.zeros(s.shape),
-            start,
-            ref,
-            allowance,
-            DEFAULT_CONFIG.lateral,
-            rate_allowance=rate,
-            smooth=smooth,
-        )
+        config = DEFAULT_CONFIG.lateral
+        problem_qp = lateral_problem(bounds, np.zeros(s.shape), start, ref, allowance, config, rate, smooth)
+        qp = solve_lateral(solver, problem_qp, config)
         assert qp.info.converged, qp.info
         assert np.all(qp.d >= -1.5 - 1e-3) and np.all(qp.d <= 1.5 + 1e-3)
         path = frenet_path(ref, s, qp.d, qp.dd, qp.ddd)
