@@ -26,6 +26,7 @@ the status is converged; otherwise it is the backend's last iterate, which need 
 from __future__ import annotations
 
 import math
+import threading
 import time
 import warnings
 from dataclasses import dataclass
@@ -77,25 +78,27 @@ class ConicQPResult:
     x: FloatArray
 
 
-#: matrices :func:`qpsolvers_problem` built, by what they were built from: ``("P", id(P))`` → ``(P, full)``
-#: and ``("A", id(A), masks)`` → ``(A, G, A_eq)``, the source kept beside them (an identity is only
-#: reused once its object is gone). The lateral QP's and the elastic QP's matrices are shared per knot
-#: grid (``functools.lru_cache``), and a plan hands the same grid over several times; building them
-#: again was a third of the conversion's cost. Shared, never written to; the oldest dropped first.
-_BUILT: dict[tuple[Any, ...], tuple[Any, ...]] = {}
-#: entries of :data:`_BUILT` kept
+#: per thread, the matrices :func:`qpsolvers_problem` built, by what they were built from:
+#: ``("P", id(P))`` → ``(P, full)`` and ``("A", id(A), masks)`` → ``(A, G, A_eq)``, the source kept beside
+#: them (an identity is only reused once its object is gone). The lateral QP's and the elastic QP's
+#: matrices are shared per knot grid (``functools.lru_cache``), and a plan hands the same grid over several
+#: times; building them again was a third of the conversion's cost. Never written to; the oldest dropped
+#: first. One cache per thread: a plan's spare thread (:mod:`planner.thread_solvers`) solves beside it.
+_BUILT = threading.local()
+#: entries of each thread's cache kept
 _BUILT_SIZE = 16
 
 
 def _built(key: tuple[Any, ...], source: sp.csc_matrix, build: Any) -> tuple[Any, ...]:
-    """``build()``'s matrices for ``key``, built once while ``source`` is alive."""
-    found = _BUILT.get(key)
+    """``build()``'s matrices for ``key``, built once per thread while ``source`` is alive."""
+    built: dict[tuple[Any, ...], tuple[Any, ...]] = _BUILT.__dict__.setdefault("entries", {})
+    found = built.get(key)
     if found is not None and found[0] is source:
         return found[1:]
     made = build()
-    while len(_BUILT) >= _BUILT_SIZE:
-        _BUILT.pop(next(iter(_BUILT)), None)
-    _BUILT[key] = (source, *made)
+    while len(built) >= _BUILT_SIZE:
+        built.pop(next(iter(built)), None)
+    built[key] = (source, *made)
     return tuple(made)
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections import OrderedDict
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -21,7 +22,7 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from solvers.conic_qp import BACKEND, solve_conic_qp
+from solvers.conic_qp import BACKEND, ConicQPResult, solve_conic_qp
 from solvers.lateral_qp_elastic import elastic_qp, split
 from solvers.lateral_qp_problem import (
     FloatArray,
@@ -138,6 +139,13 @@ class LateralQPSolver:
     a solution) or ``"clipped_reference"`` (infeasible or failed: the reference clipped to the bounds).
     ``info.iterations`` counts OSQP's iterations (qpsolvers does not report Clarabel's).
 
+    Spare thread. Given an executor (``spare``: one worker, used by nothing else while a solve waits on
+    it), the elastic problem of a QP handed to the second backend starts there beside the second
+    backend's own solve, where the caller relaxes an infeasible QP (``relax``, or ``relax_later`` for a
+    later :meth:`relax`): an infeasible QP then costs the longer of the two solves, not their sum. The
+    answers are the same (Clarabel's solves depend on their problem only); a feasible QP leaves the
+    elastic solve's work unused on the spare thread.
+
     Args:
         eps_abs, eps_rel: OSQP's absolute and relative tolerances.
         polish: run OSQP's solution polishing.
@@ -145,6 +153,13 @@ class LateralQPSolver:
         max_cached: number of set-ups kept.
         second_backend: hand what OSQP does not converge on to Clarabel.
         second_max_iter: Clarabel's iteration limit.
+        spare: an executor of one worker thread for the elastic problem beside the second backend's
+            solve (see *Spare thread*); None: every solve in the caller's thread.
+        spare_residual: the elastic problem starts on the spare thread only where OSQP's primal residual
+            after its iterations is above this (in the rows' units: m, -, 1/m): an infeasible QP's stays
+            large. On the closed loops of ``bench/cycles.py``: 223 of the 252 infeasible QPs handed over,
+            56 of the 192 feasible ones (whose elastic solve is spent for nothing and slows the caller's
+            thread, with which it shares the interpreter); started 279 times, relaxed 192.
     """
 
     def __init__(
@@ -157,6 +172,8 @@ class LateralQPSolver:
         max_cached: int = 4,
         second_backend: bool = True,
         second_max_iter: int = 50,
+        spare: Executor | None = None,
+        spare_residual: float = 0.05,
     ) -> None:
         if not (eps_abs > 0 and eps_rel >= 0 and feasibility_tol > 0):
             raise ValueError("eps_abs and feasibility_tol must be > 0 and eps_rel ≥ 0")
@@ -175,6 +192,11 @@ class LateralQPSolver:
         self._setup_count = 0
         #: OSQP's initial rho (its default), read from the first set-up
         self._rho = 0.1
+        self._spare = spare
+        self._spare_residual = float(spare_residual)
+        #: elastic problems started on the spare thread for a later :meth:`relax`, by the problem's
+        #: identity (the problem kept beside its solve, so that the identity is not reused)
+        self._elastic: OrderedDict[int, tuple[LateralQPProblem, Future[ConicQPResult]]] = OrderedDict()
 
     @property
     def setup_count(self) -> int:
@@ -225,6 +247,7 @@ class LateralQPSolver:
         warm_start: bool = True,
         second_backend: bool = True,
         relax: bool = True,
+        relax_later: bool = False,
     ) -> LateralQPResult:
         """Solve ``problem``; non-convergence is reported in ``result.info.status``, never raised.
 
@@ -246,6 +269,8 @@ class LateralQPSolver:
                 (``relaxed``). False: return OSQP's result with the proof (its own, or beside it;
                 ``infeasible`` set) — for a caller that takes converged answers only, which the elastic
                 path never is, or that relaxes it later only where it needs it (:meth:`relax`).
+            relax_later: with ``relax=False``, the caller may call :meth:`relax` on the result: with a
+                spare thread its elastic problem starts beside the second backend's solve.
 
         Raises:
             ValueError: ``problem`` is not a :class:`LateralQPProblem`, or a limit is not positive.
@@ -359,6 +384,9 @@ class LateralQPSolver:
             return self.relax(
                 problem, replace(result(x, status, message), infeasible=True), time_limit_s=remaining()
             )
+        # where the QP proves infeasible its elastic problem is next: started beside the proof
+        likely = (relax or relax_later) and float(info.prim_res) > self._spare_residual
+        started = likely and self._start_elastic(problem, remaining())
         second = solve_conic_qp(
             workspace.P,
             q,
@@ -369,6 +397,8 @@ class LateralQPSolver:
             time_limit_s=remaining(),
             feasibility_tol=self._feasibility_tol,
         )
+        if started and (status.converged or second.info.status is not SolverStatus.INFEASIBLE):
+            self._drop_elastic(problem)  # no proof that OSQP's answer needs relaxing: nothing to relax
         extras["second_status"] = str(second.info.extras["backend_status"])
         message += f"; {second.info.message}"
         first = result(x, status, message)
@@ -386,6 +416,30 @@ class LateralQPSolver:
             return first
         return self.relax(problem, first, time_limit_s=remaining())
 
+    def _solve_elastic(self, problem: LateralQPProblem, time_limit_s: float | None) -> ConicQPResult:
+        """``problem``'s elastic problem solved by the second backend within ``time_limit_s`` [s]."""
+        return solve_conic_qp(
+            *elastic_qp(problem),
+            max_iter=self._second_max_iter,
+            time_limit_s=time_limit_s,
+            feasibility_tol=self._feasibility_tol,
+        )
+
+    def _start_elastic(self, problem: LateralQPProblem, time_limit_s: float | None) -> bool:
+        """Start ``problem``'s elastic problem on the spare thread for :meth:`relax` (False: no spare)."""
+        if self._spare is None:
+            return False
+        self._elastic[id(problem)] = (problem, self._spare.submit(self._solve_elastic, problem, time_limit_s))
+        while len(self._elastic) > self._max_cached:  # started for results nobody relaxed
+            self._elastic.popitem(last=False)[1][1].cancel()
+        return True
+
+    def _drop_elastic(self, problem: LateralQPProblem) -> None:
+        """Cancel ``problem``'s elastic problem where it has not started (else its result goes unused)."""
+        started = self._elastic.pop(id(problem), None)
+        if started is not None:
+            started[1].cancel()
+
     def relax(
         self, problem: LateralQPProblem, first: LateralQPResult, *, time_limit_s: float | None = None
     ) -> LateralQPResult:
@@ -393,7 +447,8 @@ class LateralQPSolver:
         :mod:`solvers.lateral_qp_elastic`; ``relaxed``: usable, not converged), ``first`` beside it, after
         a proof that ``problem`` has none (``first``, :meth:`solve`'s result with ``infeasible``: solved
         with ``relax=False``, to relax only where the caller needs it); ``first`` itself where the elastic
-        problem does not converge. ``time_limit_s`` [s]: the second backend's safety net (None: none).
+        problem does not converge. ``time_limit_s`` [s]: the second backend's safety net (None: none;
+        an elastic problem started on the spare thread keeps the limit it started with).
 
         Raises:
             ValueError: ``first`` carries no proof of infeasibility.
@@ -401,12 +456,11 @@ class LateralQPSolver:
         if not first.infeasible:
             raise ValueError("first: relax() needs a result proven infeasible (solve(..., relax=False))")
         start = time.perf_counter()
-        elastic = solve_conic_qp(
-            *elastic_qp(problem),
-            max_iter=self._second_max_iter,
-            time_limit_s=time_limit_s,
-            feasibility_tol=self._feasibility_tol,
-        )
+        started = self._elastic.pop(id(problem), None)
+        if started is not None and started[0] is problem:
+            elastic = started[1].result()
+        else:
+            elastic = self._solve_elastic(problem, time_limit_s)
         if not elastic.info.converged:
             return first
         x, slack = split(problem, elastic.x)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import warnings
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -145,3 +147,44 @@ def test_without_iterative_refinement_the_elastic_answer_is_that_with_it_to_a_mi
     assert fast.info.max_violation <= 1e-8
     _, slack = split(problem, fast.x)
     assert float(np.max(slack)) > 0.1  # the bounds are relaxed: a real elastic answer
+
+
+class _Counting(ThreadPoolExecutor):
+    """A one-worker executor that counts what it was given."""
+
+    def __init__(self) -> None:
+        super().__init__(max_workers=1)
+        self.submitted = 0
+
+    def submit(self, fn: Any, /, *args: Any, **kwargs: Any) -> Future[Any]:
+        self.submitted += 1
+        return super().submit(fn, *args, **kwargs)
+
+
+def test_on_a_spare_thread_the_elastic_problem_starts_beside_the_proof_and_answers_the_same() -> None:
+    """With a spare thread, an infeasible QP's elastic problem starts there beside the second backend's
+    proof: relaxed at once, or later by :meth:`LateralQPSolver.relax`, the answer is the one without the
+    spare thread. A QP the second backend solves leaves nothing behind to relax."""
+    infeasible = _corridor(width=0.3, d0=2.0)
+    alone = LateralQPSolver().solve(infeasible, max_iter=3)
+    with _Counting() as spare:
+        solver = LateralQPSolver(spare=spare)
+        at_once = solver.solve(infeasible, max_iter=3)
+        assert spare.submitted == 1
+        assert at_once.info.status is SolverStatus.RELAXED
+        np.testing.assert_array_equal(at_once.x, alone.x)
+        assert at_once.info.extras == alone.info.extras
+        proof = solver.solve(infeasible, max_iter=3, relax=False, relax_later=True)
+        assert spare.submitted == 2 and proof.infeasible
+        later = solver.relax(infeasible, proof)
+        assert spare.submitted == 2  # the one started beside the proof
+        np.testing.assert_array_equal(later.x, alone.x)
+        # a proof nobody said would be relaxed starts nothing; relaxing it solves here
+        unannounced = solver.solve(infeasible, max_iter=3, relax=False)
+        assert spare.submitted == 2
+        np.testing.assert_array_equal(solver.relax(infeasible, unannounced).x, alone.x)
+        feasible = _corridor(width=3.0, d0=2.5)
+        handed = solver.solve(feasible, max_iter=3, relax=False, relax_later=True)
+        assert handed.info.converged and handed.info.extras["backend"] == "clarabel"
+        assert not handed.infeasible
+        np.testing.assert_array_equal(handed.x, LateralQPSolver().solve(feasible, max_iter=3).x)
