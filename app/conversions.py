@@ -177,12 +177,12 @@ def demo_goal() -> Goal:
     )
 
 
-def demo_with_follower(request: PlanningRequest) -> PlanningRequest:
+def demo_with_follower(request: PlanningRequest, faster: float = 1.0) -> PlanningRequest:
     """``request`` (the demo's, or the demo's with its goal) with a car 15 m behind the ego in its lane,
-    1 m/s faster, straight on for the horizon: a plan of it bounds the profile from below (a follower's
-    speed problem, a QP of its own)."""
+    ``faster`` [m/s] faster, straight on for the horizon: a plan of it bounds the profile from below (a
+    follower's speed problem, a QP of its own)."""
     ego = request.ego
-    speed = ego.speed + 1.0
+    speed = ego.speed + faster
     times = np.linspace(0.0, float(request.options.horizon_time), 9)
     c, s = float(np.cos(ego.heading)), float(np.sin(ego.heading))
     start = np.array([ego.x - 15.0 * c, ego.y - 15.0 * s])

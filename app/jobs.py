@@ -57,6 +57,7 @@ from planner.frenet import to_cartesian, to_frenet
 from planner.pipeline import plan
 from planner.reference import build_reference
 from planner.speed import reach_speed
+from planner.thread_solvers import thread_solvers
 
 #: the most arrays and objects of a planning request: the reference line and its points, four width
 #: lists (lane and road), the obstacles and each one's polygon, centre or prediction, every vertex,
@@ -176,8 +177,15 @@ def warm_up() -> None:
 def plan_demos() -> None:
     """Plan the demo, with and without a goal, with and without a car from behind, so that this thread's
     first plans do not build the speed problem (a goal's and a follower's bounds each have a QP of their
-    own: 25–50 ms to build, inside the first request that needs it)."""
+    own: 25–50 ms to build, inside the first request that needs it), nor the spare thread's solver its
+    follower's ones (:mod:`planner.thread_solvers`); returns once the spare thread is idle."""
     demo = demo_request()
     with_goal = demo.model_copy(update={"goal": demo_goal()})
-    for request in (demo, with_goal, demo_with_follower(demo), demo_with_follower(with_goal)):
+    # the last two with a car from behind closing fast: the spare thread solves their second profile
+    requests = (demo, with_goal, demo_with_follower(demo), demo_with_follower(with_goal))
+    closing = (demo_with_follower(demo, faster=8.0), demo_with_follower(with_goal, faster=8.0))
+    for request in (*requests, *closing):
         plan_job(Job("plan", request.model_dump_json().encode(), time.monotonic(), 60_000.0))
+    spare = thread_solvers().spare
+    if spare is not None:
+        spare.wait()

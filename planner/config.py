@@ -207,6 +207,11 @@ class PlannerConfig:
     #: share of ``options.time_budget_ms`` kept for the fallback when the stages overrun (they stop at
     #: the rest) [-]
     budget_reserve: float = 0.1
+    #: start a solve a stage may need next on a second thread before the stage knows whether it does
+    #: (:mod:`planner.thread_solvers`: the elastic problem beside an infeasibility proof, the emergency
+    #: jerk's speed profile beside the first with a vehicle from behind): the same answers, sooner where
+    #: a second core is free, the unused solves' work spent; False: every solve in the plan's thread
+    speculate: bool = True
     selection: SelectionConfig = field(default_factory=SelectionConfig)
     lateral: LateralConfig = field(default_factory=LateralConfig)
     speed: SpeedConfig = field(default_factory=SpeedConfig)

@@ -172,6 +172,7 @@ def drive(run: Run, solvers: Solvers, lateral: LateralPlan, candidate: Path) -> 
                 decision.passing,
                 go_first=go_first,
                 time_left=timer.remaining_s,
+                spare=solvers.spare,
             )
 
     speed = profile_along(go_first=True)

@@ -213,13 +213,14 @@ def solve_lateral(
     *,
     second_backend: bool = True,
     relax: bool = True,
+    relax_later: bool = False,
     max_iter: int | None = None,
 ) -> LateralQPResult:
     """``problem`` solved by ``solver`` from a cold start within ``max_iter`` OSQP iterations (None:
     ``config.max_iter``) and ``time_limit_s`` [s] (None: none). ``second_backend``: what OSQP does not
     converge on goes to the solver's second backend; ``relax``: an infeasible QP gets the elastic
     problem's least-violating path (False: the proof only, ``infeasible``; :meth:`LateralQPSolver.relax`
-    relaxes it later)."""
+    relaxes it later, which ``relax_later`` tells the solver to expect)."""
     # cold: the answer must not depend on what this process planned before
     return solver.solve(
         problem,
@@ -228,6 +229,7 @@ def solve_lateral(
         warm_start=False,
         second_backend=second_backend,
         relax=relax,
+        relax_later=relax_later,
     )
 
 
@@ -596,7 +598,7 @@ def _attempt_at(
     qp_problem = lateral_problem(bounds, d_ref, start, ref, allowance, config.lateral, rate)
     # An infeasible QP's least-violating path (the elastic problem: the stage's costliest solve) is
     # solved only once the stage needs this attempt where that can wait (:meth:`_Attempt.settled`).
-    qp = solve_lateral(solver, qp_problem, config.lateral, time_left(), relax=False)
+    qp = solve_lateral(solver, qp_problem, config.lateral, time_left(), relax=False, relax_later=True)
     if qp.info.converged and qp.first is None:  # OSQP solved it: nothing to choose from
         return _Attempt(corridor, qp, lambda: paths.in_lane(bounds.s, qp, corridor.surface))
     if qp.info.converged and paths.in_lane(bounds.s, qp, corridor.surface):

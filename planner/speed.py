@@ -55,6 +55,7 @@ from planner.st_bounds import (
     moving_obstacles,
     space_time_bounds,
 )
+from planner.thread_solvers import Spare
 from planner.timing import time_for
 from planner.trajectory import Path, Trajectory, body_trajectory, sample
 from solvers.speed_problem import SpeedProblem, SpeedResult, integrate_jerk
@@ -291,6 +292,7 @@ def speed_stage(
     passing: Collection[str] = (),
     go_first: bool = True,
     time_left: Callable[[], float | None] = lambda: None,
+    spare: Spare | None = None,
 ) -> SpeedPlan:
     """The speed profile along the lateral stage's ``path`` (see the module docstring), with a goal's
     ``aim``; the moving obstacles ``passing`` overtakes are not followed
@@ -298,7 +300,9 @@ def speed_stage(
     pass in front of (:func:`pass_first`) is passed so, where the profile manages it within the limits
     (else it yields to it, as to every other obstacle ahead). The second solve with the emergency jerk
     runs only while ``time_left`` [s] (None: no budget) leaves what the first took
-    (:func:`planner.timing.time_for`): past the budget the plan falls back to braking anyway."""
+    (:func:`planner.timing.time_for`): past the budget the plan falls back to braking anyway. With a
+    ``spare`` thread it starts there beside the first where a vehicle from behind catches up with the ego
+    keeping its speed (then the first is often behind its bound: :mod:`planner.thread_solvers`)."""
     cfg = config.speed
     steps, dt = profile_grid(problem.options, cfg)
     s_stop = stop_position(ref, path, lateral, config.stop_gap, problem.vehicle.front_extent)
@@ -319,6 +323,19 @@ def speed_stage(
             if _in_front(speed, np.max([c.least for c in first], axis=0), cfg):
                 return SpeedPlan(speed, Profile.optimised(speed), ids)
     bounds = space_time_bounds(ref, path, problem, t, start.s, config, passing)
+
+    def emergency(with_solver: SpeedSolver) -> SpeedResult:
+        """The profile with the emergency jerk, solved by ``with_solver``."""
+        return _solve(with_solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config, aim)
+
+    # Started beside the first only where likely needed: the vehicle from behind catches up with the ego
+    # keeping its speed (on the closed loops of bench/cycles.py: started 183 times, needed 127 of the 151
+    # times the re-solve runs; started with every follower bound, 299 of 450 were not needed, and their
+    # work, sharing the interpreter, slowed the plan's thread)
+    caught = bounds.lower is not None and bool(np.any(problem.ego.speed * t < bounds.lower))
+    started = None
+    if spare is not None and jerk < cfg.emergency_jerk and caught:
+        started = spare.submit(emergency, spare.speed)
     speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
     # a second solve only while the budget leaves what the first took (past it, the plan falls back)
     again = jerk < cfg.emergency_jerk and time_for(time_left, speed.info.solve_time_ms)
@@ -326,15 +343,20 @@ def speed_stage(
         # The comfortable jerk cannot slow down in time (a curve or an obstacle close ahead): safety
         # before comfort, brake as hard as the emergency jerk allows. (Not for a follower bound alone:
         # more jerk hardly speeds up sooner.)
-        speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config, aim)
+        speed = emergency(solver) if started is None else started.result()
     elif again and speed.follower_violation > cfg.slack:
         # Behind the follower bound with the comfortable jerk: braking later, as hard as the emergency
         # jerk allows, keeps ahead of it longer where a curve or a leader ahead makes the speed drop.
-        harder = _solve(solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config, aim)
-        if harder.info.usable and harder.follower_violation < speed.follower_violation - cfg.slack and max(
-            harder.speed_violation, harder.position_violation
-        ) <= max(speed.speed_violation, speed.position_violation, cfg.slack):
+        harder = emergency(solver) if started is None else started.result()
+        if (
+            harder.info.usable
+            and harder.follower_violation < speed.follower_violation - cfg.slack
+            and max(harder.speed_violation, harder.position_violation)
+            <= max(speed.speed_violation, speed.position_violation, cfg.slack)
+        ):
             speed = harder
+    elif started is not None:
+        started.cancel()  # not needed (where it has begun, its work is spent)
     profile = Profile.optimised(speed)
     if speed.info.usable and speed.position_violation > cfg.position_slack:
         # Past a stop or a space-time bound (the solver's limits are soft): full braking keeps every

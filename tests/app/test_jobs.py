@@ -17,21 +17,30 @@ from planner.thread_solvers import thread_solvers
 def test_the_warm_up_builds_the_speed_problems_with_and_without_a_goal_and_a_follower(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    built: list[int] = []
-    frozen: list[int] = []  # the heap is frozen out of the cyclic GC once the warm-up has planned
-    monkeypatch.setattr(gc, "freeze", lambda: frozen.append(thread_solvers().speed.build_count))
+    built: list[tuple[int, int]] = []
+    frozen: list[tuple[int, int]] = []  # the heap is frozen out of the cyclic GC once the warm-up has planned
+
+    def counts() -> tuple[int, int]:
+        """QPs built by the plan thread's speed solver and by its spare thread's (idle first)."""
+        solvers = thread_solvers()
+        assert solvers.spare is not None  # the default configuration speculates
+        solvers.spare.wait()
+        return solvers.speed.build_count, solvers.spare.speed.build_count
+
+    monkeypatch.setattr(gc, "freeze", lambda: frozen.append(counts()))
 
     def process() -> None:  # the solvers are kept per thread: a thread of its own is a fresh process here
         warm_up()
-        built.append(thread_solvers().speed.build_count)
+        built.append(counts())
         goal = demo_request().model_copy(update={"goal": demo_goal()})
         for request in (goal, demo_with_follower(goal), demo_with_follower(demo_request())):
             plan_job(Job("plan", request.model_dump_json().encode(), time.monotonic(), 60_000.0))
-            built.append(thread_solvers().speed.build_count)
+            built.append(counts())
 
     thread = threading.Thread(target=process)
     thread.start()
     thread.join()
-    # the goal's and the follower's QPs built by the warm-up, not by the first requests that need them
-    assert built == [4, 4, 4, 4]
-    assert frozen == [4]  # frozen after the warm-up built them all
+    # the goal's and the follower's QPs built by the warm-up, not by the first requests that need them;
+    # the spare thread's solver solves with a follower only (with and without a goal)
+    assert built == [(4, 2), (4, 2), (4, 2), (4, 2)]
+    assert frozen == [(4, 2)]  # frozen after the warm-up built them all

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import multiprocessing
+import os
 import threading
 from dataclasses import FrozenInstanceError, replace
 
@@ -51,6 +53,28 @@ def test_solvers_are_kept_per_thread_and_per_solver_setting() -> None:
     thread.start()
     thread.join()
     assert elsewhere[0] is not first
+
+
+def test_a_spare_thread_per_solver_set_where_the_config_speculates_and_in_a_forked_process_too() -> None:
+    """``speculate`` gives each solver set a spare thread (and none without); it runs what it is given,
+    in order, also in a process forked from one whose spare thread had started (a fork copies the
+    thread's objects, not the thread: the work would wait for ever on a worker that is not there)."""
+    assert thread_solvers(replace(DEFAULT_CONFIG, speculate=False)).spare is None
+    spare = thread_solvers(DEFAULT_CONFIG).spare
+    assert spare is not None
+    assert spare.submit(lambda: threading.current_thread().name).result().startswith("kappa-spare")
+    order: list[int] = []
+    for k in range(3):
+        spare.submit(order.append, k)
+    spare.wait()
+    assert order == [0, 1, 2]
+    fork = multiprocessing.get_context("fork")
+    answers = fork.Queue()
+    child = fork.Process(target=lambda: answers.put(spare.submit(lambda: os.getpid()).result()))
+    child.start()
+    child.join(timeout=60)
+    assert child.exitcode == 0
+    assert answers.get(timeout=1) == child.pid
 
 
 def test_lateral_config_defaults_are_the_documented_ones() -> None:

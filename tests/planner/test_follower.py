@@ -8,6 +8,9 @@ boxes as polygons at the same times), not with the planner's own checks.
 
 from __future__ import annotations
 
+from dataclasses import replace
+from typing import Any
+
 import numpy as np
 import pytest
 import shapely
@@ -15,11 +18,15 @@ from scenario_roads import Road, arc_piece, follow_prediction, straight_piece
 from traffic import LANE, ROAD, car
 
 from planner.collision import box_corners, prediction_at
+from planner.config import DEFAULT_CONFIG
 from planner.follower import FollowerReason
 from planner.pipeline import plan
 from planner.problem import DynamicObstacle, Ego, Lane, Options, PlanningProblem, Vehicle
 from planner.result import PlanResult
 from planner.speed import ProfileKind
+from planner.thread_solvers import Spare
+from solvers.speed_problem import SpeedProblem
+from solvers.speed_sqp import SpeedSolver
 from tests.regression.checks import limit_problems
 
 
@@ -125,3 +132,34 @@ def test_the_car_behind_in_the_next_lane_is_never_named() -> None:
     beside = car("beside", 30.0 - 4.5 - 12.0, 16.0, y=-3.5)
     result = plan(PlanningProblem(ROAD, LANE, problem.ego, (beside,), problem.vehicle, problem.options))
     assert result.status == "ok" and result.diagnostics.follower is None
+
+
+def test_the_second_profile_solved_beside_the_first_on_a_spare_thread_is_the_same(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A car behind closing on the ego (it cannot be escaped at the target): the profile with the
+    emergency jerk, needed after the first, starts on the spare thread beside it; the answer is the one
+    planned without a spare thread, where the same profile is solved after the first."""
+    problem, _ = _single_lane(limit=10.0)
+    started: list[str] = []
+    solves: list[float] = []
+    submit, solve = Spare.submit, SpeedSolver.solve
+
+    def counted_submit(self: Spare, fn: Any, /, *args: Any, **kwargs: Any) -> Any:
+        started.append(fn.__name__)
+        return submit(self, fn, *args, **kwargs)
+
+    def counted_solve(self: SpeedSolver, sp: SpeedProblem, **kwargs: Any) -> Any:
+        solves.append(sp.jerk_max)
+        return solve(self, sp, **kwargs)
+
+    monkeypatch.setattr(Spare, "submit", counted_submit)
+    monkeypatch.setattr(SpeedSolver, "solve", counted_solve)
+    alone = plan(problem, replace(DEFAULT_CONFIG, speculate=False))
+    assert started == [] and solves == [8.0, 30.0]  # the emergency jerk's profile after the first
+    solves.clear()
+    beside = plan(problem)
+    assert started == ["emergency"] and sorted(solves) == [8.0, 30.0]
+    assert (beside.status, beside.message) == (alone.status, alone.message)
+    for name in ("t", "x", "y", "v", "a", "heading", "curvature", "s", "d"):
+        np.testing.assert_array_equal(getattr(beside.trajectory, name), getattr(alone.trajectory, name))
