@@ -16,9 +16,12 @@ given — and so is every solver call inside it
 calls, QPs, HPIPM iterations). The counts do not depend on the machine's load: the same request gets
 the same answer and the same counts. Beside the wall time, each plan's CPU time (of the thread that
 planned) is printed: on a machine shared with other jobs it is much closer to the wall time an idle
-machine would measure. They work on any checkout of the planner (the
-recorder wraps the loop's ``plan`` and the two solver classes), so that a run against the previous commit
-can be interleaved with this one::
+machine would measure. With ``PlannerConfig.speculate`` a plan also works on its spare thread
+(:mod:`planner.thread_solvers`): the loop waits for it to be idle after each plan (outside the timed
+plan; a 10 Hz loop leaves it the time), so that what it solved is counted in its cycle
+(``spare_speed_solves``), and the process's CPU time, the spare thread's included, is printed too.
+They work on any checkout of the planner (the recorder wraps the loop's ``plan`` and the two solver
+classes), so that a run against the previous commit can be interleaved with this one::
 
     python bench/cycles.py                      # all scenes, the requests' own vehicle (point model)
     python bench/cycles.py --vehicle car --only USA_Peach-3_1_T-1 --worst 20
@@ -38,9 +41,11 @@ import argparse
 import gc
 import importlib.util
 import json
+import math
 import os
 import statistics
 import sys
+import threading
 import time
 from collections.abc import Iterable, Iterator, Mapping
 from contextlib import contextmanager
@@ -59,6 +64,7 @@ import planner_tools.sim as sim  # noqa: E402 (after the path fix)
 from planner.pipeline import plan  # noqa: E402
 from planner.problem import PlanningProblem  # noqa: E402
 from planner.st_bounds import moving_obstacles  # noqa: E402
+from planner.thread_solvers import thread_solvers  # noqa: E402
 from planner_tools.io import problem_from_json, problem_to_json  # noqa: E402
 from solvers.lateral_qp import LateralQPSolver  # noqa: E402
 from solvers.speed_sqp import SpeedSolver  # noqa: E402
@@ -92,6 +98,9 @@ class Counts:
     speed_solves: int = 0
     sqp_qps: int = 0
     hpipm_iterations: int = 0
+    #: speed profiles the spare thread solved beside the plan's (``PlannerConfig.speculate``), used or not
+    #: (their QPs and iterations are in the two above)
+    spare_speed_solves: int = 0
 
 
 @dataclass
@@ -114,6 +123,8 @@ class Cycle:
     obstacles: int
     moving: int
     counts: Counts = field(default_factory=Counts)
+    #: CPU time of the whole process from the plan's start until its spare thread is idle [ms]
+    process_cpu_ms: float = float("nan")
 
 
 @dataclass
@@ -137,17 +148,28 @@ class Recorder:
             gc.collect()
             gc.freeze()
         self.counts = Counts()
-        t0, c0 = time.perf_counter(), time.thread_time()
+        t0, c0, p0 = time.perf_counter(), time.thread_time(), time.process_time()
         try:
             result = plan(problem, *args, **kwargs)
         except Exception as exc:  # a domain error is the loop's to handle; record it first
             self._add(problem, 1e3 * (time.perf_counter() - t0), 1e3 * (time.thread_time() - c0), None, exc)
             raise
-        self._add(problem, 1e3 * (time.perf_counter() - t0), 1e3 * (time.thread_time() - c0), result, None)
+        wall, cpu = 1e3 * (time.perf_counter() - t0), 1e3 * (time.thread_time() - c0)
+        # what the spare thread started in this plan is this cycle's (a 10 Hz loop leaves it the time)
+        spare = getattr(thread_solvers(), "spare", None)
+        if spare is not None:
+            spare.wait()
+        self._add(problem, wall, cpu, result, None, 1e3 * (time.process_time() - p0))
         return result
 
     def _add(
-        self, problem: PlanningProblem, wall: float, cpu: float, result: Any, exc: Exception | None
+        self,
+        problem: PlanningProblem,
+        wall: float,
+        cpu: float,
+        result: Any,
+        exc: Exception | None,
+        process_cpu: float = float("nan"),
     ) -> None:
         moving = len(moving_obstacles(problem))
         if result is None:
@@ -175,6 +197,7 @@ class Recorder:
                 obstacles=len(problem.obstacles),
                 moving=moving,
                 counts=self.counts,
+                process_cpu_ms=process_cpu,
             )
         self.cycles.append(cycle)
         if self.keep_problems:
@@ -209,9 +232,14 @@ def recording(recorder: Recorder) -> Iterator[Recorder]:
         counts.second_solved += handed and extras.get("backend", "osqp") != "osqp"
         return out
 
+    plan_thread = threading.current_thread()
+
     def counted_speed(self: SpeedSolver, *args: Any, **kwargs: Any) -> Any:
         out = speed_solve(self, *args, **kwargs)
-        recorder.counts.speed_solves += 1
+        if threading.current_thread() is plan_thread:
+            recorder.counts.speed_solves += 1
+        else:
+            recorder.counts.spare_speed_solves += 1
         recorder.counts.sqp_qps += int(out.info.extras.get("qp_solves", 0))
         recorder.counts.hpipm_iterations += int(out.info.iterations)
         return out
@@ -299,7 +327,8 @@ def describe(c: Cycle) -> str:
         f"lateral {c.lateral_status}"
         f"/{c.lateral_backend} {n['lateral_solves']} solves {n['osqp_iterations']} it "
         f"{n.get('second_backend', 0)} to clarabel; speed "
-        f"{n['speed_solves']} solves {n['sqp_qps']} QPs {n['hpipm_iterations']} it {c.restarts} restarts, "
+        f"{n['speed_solves']} solves (+{n.get('spare_speed_solves', 0)} spare) {n['sqp_qps']} QPs "
+        f"{n['hpipm_iterations']} it {c.restarts} restarts, "
         f"{c.speed_profile}; obstacles {c.obstacles} ({c.moving} moving)"
     )
 
@@ -315,6 +344,9 @@ def report(cycles: list[Cycle], scenes: Mapping[str, Any], worst: int) -> str:
     cpu = [c.cpu_ms for c in cycles]
     lines.append(distribution("plan CPU time (this thread)", cpu, over=DEADLINE_MS))
     lines.append(f"{'':28s} over 40 ms: {sum(w > 40 for w in cpu)}, over 80 ms: {sum(w > 80 for w in cpu)}")
+    whole = [c.process_cpu_ms for c in cycles if math.isfinite(c.process_cpu_ms)]
+    if whole:  # with the spare thread's work (PlannerConfig.speculate), used or not
+        lines.append(distribution("plan CPU time (process)", whole) + f"  total {sum(whole) / 1e3:.1f} s")
     stages = sorted({k for c in cycles for k in c.timing_ms})
     for stage in stages:
         lines.append(
@@ -398,16 +430,36 @@ def compare(before: list[Cycle], after: list[Cycle]) -> str:
     """Two runs of the same loops side by side: the distributions, and the cycles whose counts changed."""
     lines = ["before:", report(before, {}, 5), "", "after:", report(after, {}, 5), ""]
     keyed = {(c.scene, c.cycle): c for c in before}
-    changed = 0
+    changed = moved = 0
     for c in after:
         b = keyed.get((c.scene, c.cycle))
-        if b is not None and (b.status != c.status or _counts(b) != _counts(c)):
+        if b is None:
+            continue
+        if b.status != c.status or b.message != c.message or _lateral(b) != _lateral(c):
             changed += 1
+        elif _counts(b) != _counts(c):
+            # the same answer and lateral work: the speed solves differ only where one run solved some on
+            # its spare thread (PlannerConfig.speculate: started beside the first, used or not)
+            spared = _counts(b)["spare_speed_solves"] or _counts(c)["spare_speed_solves"]
+            changed += not spared
+            moved += bool(spared)
     lines.append(
-        f"{changed} of {len(after)} cycles changed status or solver counts "
+        f"{changed} of {len(after)} cycles changed status, message or solver counts "
         "(a changed cycle changes the loop after it)"
     )
+    if moved:
+        lines.append(f"{moved} more with the same answers and lateral work, speed solves on a spare thread")
     return "\n".join(lines)
+
+
+#: the lateral QP's counts among :class:`Counts`
+_LATERAL = ("lateral_solves", "osqp_iterations", "lateral_unconverged", "second_backend", "second_solved")
+
+
+def _lateral(c: Cycle) -> list[int]:
+    """The lateral QP's counts of a cycle."""
+    counts = _counts(c)
+    return [counts[k] for k in _LATERAL]
 
 
 def _load(path: Path) -> list[Cycle]:
