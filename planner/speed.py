@@ -331,11 +331,15 @@ def speed_stage(
     # Started beside the first only where likely needed: the vehicle from behind catches up with the ego
     # keeping its speed (on the closed loops of bench/cycles.py: started 183 times, needed 127 of the 151
     # times the re-solve runs; started with every follower bound, 299 of 450 were not needed, and their
-    # work, sharing the interpreter, slowed the plan's thread)
-    caught = bounds.lower is not None and bool(np.any(problem.ego.speed * t < bounds.lower))
+    # work, sharing the interpreter, slowed the plan's thread), or braking with this jerk cannot keep
+    # behind a leader's bound (4 of the 30 re-solves for a broken speed or position bound, 1 not needed)
     started = None
-    if spare is not None and jerk < cfg.emergency_jerk and caught:
-        started = spare.submit(emergency, spare.speed)
+    if spare is not None and jerk < cfg.emergency_jerk:
+        caught = bounds.lower is not None and bool(np.any(problem.ego.speed * t < bounds.lower))
+        if caught or (
+            bounds.upper is not None and _brakes_past(path, problem, t, jerk, bounds.upper, cfg.slack)
+        ):
+            started = spare.submit(emergency, spare.speed)
     speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
     # a second solve only while the budget leaves what the first took (past it, the plan falls back)
     again = jerk < cfg.emergency_jerk and time_for(time_left, speed.info.solve_time_ms)
@@ -363,6 +367,20 @@ def speed_stage(
         # s(t) as small as the limits allow, so it is the answer here (no creeping up to a block).
         profile = braking(path, problem, steps, dt, cfg)
     return SpeedPlan(speed, profile)
+
+
+def _brakes_past(
+    path: Path, problem: PlanningProblem, t: FloatArray, jerk: float, upper: FloatArray, slack: float
+) -> bool:
+    """Whether full braking within ``jerk`` [m/s³] from the ego's state passes ``upper`` [m] (a bound on
+    ``σ`` at the knot times ``t`` [s]) by more than ``slack`` [m] somewhere: every profile with that jerk
+    then breaks it."""
+    v0, a0 = max(problem.ego.speed, 0.0), max(initial_acceleration(problem), 0.0)
+    if not np.any(v0 * t + 0.5 * a0 * t**2 > upper + slack):
+        return False  # braking never gets farther than the ego's acceleration held
+    sp = _speed_problem(path, problem, t.size - 1, float(t[1] - t[0]), jerk, np.zeros_like(path.sigma), 0.0)
+    stop = _analytic(ProfileKind.BRAKING, sp, braking_profile(sp))
+    return bool(np.any(stop.s > upper + slack))
 
 
 def pass_first(

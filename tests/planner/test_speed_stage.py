@@ -41,6 +41,7 @@ from planner.speed import (
     speed_limit,
     speed_stage,
 )
+from planner.thread_solvers import Spare
 from planner.timing import StageTimer
 from planner.trajectory import frenet_path
 from planner.validation import Violation, ViolationKind
@@ -344,6 +345,29 @@ def test_past_its_budget_the_speed_stage_does_not_solve_again_with_the_emergency
     monkeypatch.setattr(StageTimer, "remaining_s", lambda self: 1e-9)  # nothing left, whatever the budget
     plan(problem)
     assert len(solves) == 1
+
+
+def test_behind_a_slow_leader_too_close_for_the_comfortable_jerk_the_second_profile_starts_on_the_spare(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """15 m/s with a leader at 8 m/s 10 m ahead: braking with the comfortable jerk cannot keep the
+    headway, so the profile with the emergency jerk is solved next; it starts on the spare thread beside
+    the first, and the answer is the one planned without a spare thread. Without a leader nothing starts."""
+    ego, options = Ego(30.0, 0.0, 0.0, 15.0), Options(target_speed=15.0)
+    leader = car("leader", 30.0 + 4.5 + 10.0, 8.0)
+    problem = PlanningProblem(straight(), Lane(1.75, 1.75), ego, (leader,), Vehicle(), options)
+    started = counted_calls(monkeypatch, Spare, "submit")
+    solves = counted_calls(monkeypatch, SpeedSolver, "solve")
+    alone = plan(problem, replace(DEFAULT_CONFIG, speculate=False))
+    assert (len(started), len(solves)) == (0, 2)
+    beside = plan(problem)
+    assert (len(started), len(solves)) == (1, 4)  # the emergency profile's solve on the spare thread
+    assert (beside.status, beside.message) == (alone.status, alone.message) == ("ok", "planned")
+    np.testing.assert_array_equal(beside.trajectory.v, alone.trajectory.v)
+    np.testing.assert_array_equal(beside.trajectory.y, alone.trajectory.y)
+    started.clear()
+    free = plan(PlanningProblem(straight(), Lane(1.75, 1.75), ego, (), Vehicle(), options))
+    assert free.status == "ok" and started == []
 
 
 @pytest.mark.parametrize("speed", [0.0, 0.3])
