@@ -246,6 +246,15 @@ def stop_position(
     return path.length
 
 
+def _limit(path: Path, problem: PlanningProblem, config: PlannerConfig, aim: SpeedAim | None) -> FloatArray:
+    """The speed profile's limit along ``path`` [m/s] at its knots (:func:`speed_limit`), a goal's
+    ``aim`` within it."""
+    if aim is None:
+        return speed_limit(path, problem, config)
+    # a vehicle from behind may pull the profile up to the speed cap whatever the goal's own cap
+    return aim.limited(speed_limit(path, problem, config, max(aim.cap, speed_cap(problem))))
+
+
 def _solve(
     solver: SpeedSolver,
     path: Path,
@@ -256,14 +265,11 @@ def _solve(
     dt: float,
     jerk_max: float,
     config: PlannerConfig,
-    aim: SpeedAim | None = None,
+    aim: SpeedAim | None,
+    limit: FloatArray,
 ) -> SpeedResult:
-    if aim is None:
-        limit, v_target = speed_limit(path, problem, config), target_speed(problem)
-    else:
-        # a vehicle from behind may pull the profile up to the speed cap whatever the goal's own cap
-        cap = max(aim.cap, speed_cap(problem))
-        limit, v_target = aim.limited(speed_limit(path, problem, config, cap)), aim.v_target
+    """The profile within ``limit`` [m/s] (:func:`_limit`) and ``bounds``, ``jerk_max`` [m/s³]."""
+    v_target = target_speed(problem) if aim is None else aim.v_target
     sp = _speed_problem(
         path,
         problem,
@@ -310,6 +316,7 @@ def speed_stage(
         s_stop = min(s_stop, aim.stop)
     t = np.arange(steps + 1, dtype=np.float64) * dt
     jerk = cfg.emergency_jerk if lateral.stops else cfg.jerk
+    limit = _limit(path, problem, config, aim)
     if go_first and not lateral.stops:
         first = pass_first(ref, path, problem, t, start, s_stop, config, passing)
         if first:
@@ -319,28 +326,27 @@ def speed_stage(
             if ahead.lower is not None:
                 lower = np.maximum(lower, ahead.lower)
             bounds = SpaceTimeBounds(ahead.upper, lower)
-            speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
+            speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim, limit)
             if _in_front(speed, np.max([c.least for c in first], axis=0), cfg):
                 return SpeedPlan(speed, Profile.optimised(speed), ids)
     bounds = space_time_bounds(ref, path, problem, t, start.s, config, passing)
 
     def emergency(with_solver: SpeedSolver) -> SpeedResult:
         """The profile with the emergency jerk, solved by ``with_solver``."""
-        return _solve(with_solver, path, problem, s_stop, bounds, steps, dt, cfg.emergency_jerk, config, aim)
+        jerk_max = cfg.emergency_jerk
+        return _solve(with_solver, path, problem, s_stop, bounds, steps, dt, jerk_max, config, aim, limit)
 
     # Started beside the first only where likely needed: the vehicle from behind catches up with the ego
     # keeping its speed (on the closed loops of bench/cycles.py: started 183 times, needed 127 of the 151
     # times the re-solve runs; started with every follower bound, 299 of 450 were not needed, and their
-    # work, sharing the interpreter, slowed the plan's thread), or braking with this jerk cannot keep
-    # behind a leader's bound (4 of the 30 re-solves for a broken speed or position bound, 1 not needed)
+    # work, sharing the interpreter, slowed the plan's thread), or braking with this jerk breaks the limit
+    # or a leader's bound (28 of the 30 re-solves for a broken speed or position bound, 7 not needed)
     started = None
     if spare is not None and jerk < cfg.emergency_jerk:
         caught = bounds.lower is not None and bool(np.any(problem.ego.speed * t < bounds.lower))
-        if caught or (
-            bounds.upper is not None and _brakes_past(path, problem, t, jerk, bounds.upper, cfg.slack)
-        ):
+        if caught or _braking_breaks(path, problem, t, jerk, limit, bounds.upper, cfg.slack):
             started = spare.submit(emergency, spare.speed)
-    speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim)
+    speed = _solve(solver, path, problem, s_stop, bounds, steps, dt, jerk, config, aim, limit)
     # a second solve only while the budget leaves what the first took (past it, the plan falls back)
     again = jerk < cfg.emergency_jerk and time_for(time_left, speed.info.solve_time_ms)
     if again and max(speed.speed_violation, speed.position_violation) > cfg.slack:
@@ -369,18 +375,30 @@ def speed_stage(
     return SpeedPlan(speed, profile)
 
 
-def _brakes_past(
-    path: Path, problem: PlanningProblem, t: FloatArray, jerk: float, upper: FloatArray, slack: float
+def _braking_breaks(
+    path: Path,
+    problem: PlanningProblem,
+    t: FloatArray,
+    jerk: float,
+    limit: FloatArray,
+    upper: FloatArray | None,
+    slack: float,
 ) -> bool:
-    """Whether full braking within ``jerk`` [m/s³] from the ego's state passes ``upper`` [m] (a bound on
-    ``σ`` at the knot times ``t`` [s]) by more than ``slack`` [m] somewhere: every profile with that jerk
-    then breaks it."""
+    """Whether full braking within ``jerk`` [m/s³] from the ego's state breaks the speed ``limit`` [m/s]
+    (at the path's knots) or passes ``upper`` [m] (a bound on ``σ`` at the knot times ``t`` [s]; None:
+    none) by more than ``slack`` somewhere. A profile with that jerk then breaks one too: past ``upper``
+    always (braking keeps ``σ`` least at every time), above the limit nearly always (it comes to the bend
+    later, but faster). Which solves to start early is all it decides."""
     v0, a0 = max(problem.ego.speed, 0.0), max(initial_acceleration(problem), 0.0)
-    if not np.any(v0 * t + 0.5 * a0 * t**2 > upper + slack):
-        return False  # braking never gets farther than the ego's acceleration held
+    # braking never gets faster than v0 + a0²/(2 jerk), nor farther than the acceleration held
+    fast = v0 + a0**2 / (2.0 * jerk) > float(np.min(limit)) + slack
+    far = upper is not None and bool(np.any(v0 * t + 0.5 * a0 * t**2 > upper + slack))
+    if not (fast or far):
+        return False
     sp = _speed_problem(path, problem, t.size - 1, float(t[1] - t[0]), jerk, np.zeros_like(path.sigma), 0.0)
     stop = _analytic(ProfileKind.BRAKING, sp, braking_profile(sp))
-    return bool(np.any(stop.s > upper + slack))
+    over = bool(np.any(stop.v > np.interp(stop.s, path.sigma, limit) + slack))
+    return over or (upper is not None and bool(np.any(stop.s > upper + slack)))
 
 
 def pass_first(

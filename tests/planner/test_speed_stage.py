@@ -370,6 +370,34 @@ def test_behind_a_slow_leader_too_close_for_the_comfortable_jerk_the_second_prof
     assert free.status == "ok" and started == []
 
 
+def test_into_a_bend_too_fast_for_the_comfortable_jerk_the_second_profile_starts_on_the_spare(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """18 m/s into a hairpin of radius 15 m (no traffic): braking with the comfortable jerk cannot get
+    under the bend's limit in time, so the emergency jerk's profile starts on the spare thread beside the
+    first; the answer is the one planned without a spare thread. At 8 m/s nothing starts."""
+    problem = two_lane_problem(hairpin(15.0, leg=30.0), speed=18.0, road=False)
+    started: list[str] = []
+    submit = Spare.submit
+
+    def named(self: Spare, fn: Any, /, *args: Any, **kwargs: Any) -> Any:
+        started.append(fn.__name__)
+        return submit(self, fn, *args, **kwargs)
+
+    monkeypatch.setattr(Spare, "submit", named)
+    alone = plan(problem, replace(DEFAULT_CONFIG, speculate=False))
+    assert started == []
+    beside = plan(problem)
+    # (the lateral QP's elastic problems start there too: its corridor is tight at this speed)
+    assert started.count("emergency") == 1
+    assert (beside.status, beside.message) == (alone.status, alone.message)
+    np.testing.assert_array_equal(beside.trajectory.v, alone.trajectory.v)
+    np.testing.assert_array_equal(beside.trajectory.x, alone.trajectory.x)
+    started.clear()
+    slow = plan(two_lane_problem(hairpin(15.0, leg=30.0), speed=8.0, road=False))
+    assert slow.status == "ok" and "emergency" not in started
+
+
 @pytest.mark.parametrize("speed", [0.0, 0.3])
 @pytest.mark.parametrize("measured", [-5.0, -8.0])
 def test_a_vehicle_measured_braking_as_it_stops_is_planned_standing_or_stopping_not_rolling_back(
