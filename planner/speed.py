@@ -307,8 +307,9 @@ def speed_stage(
     (else it yields to it, as to every other obstacle ahead). The second solve with the emergency jerk
     runs only while ``time_left`` [s] (None: no budget) leaves what the first took
     (:func:`planner.timing.time_for`): past the budget the plan falls back to braking anyway. With a
-    ``spare`` thread it starts there beside the first where a vehicle from behind catches up with the ego
-    keeping its speed (then the first is often behind its bound: :mod:`planner.thread_solvers`)."""
+    ``spare`` thread it starts there beside the first where the first is likely to need it
+    (:func:`_braking_breaks`, or a vehicle from behind catching up with the ego keeping its speed:
+    :mod:`planner.thread_solvers`)."""
     cfg = config.speed
     steps, dt = profile_grid(problem.options, cfg)
     s_stop = stop_position(ref, path, lateral, config.stop_gap, problem.vehicle.front_extent)
