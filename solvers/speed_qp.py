@@ -40,6 +40,7 @@ reads and writes numpy arrays directly (CasADi's function buffer), with no conve
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Any
@@ -51,6 +52,7 @@ from solvers.speed_cost import end_terms, limit_at
 from solvers.speed_problem import PIECES, QUADRATIC_SHARE, FloatArray, SpeedProblem, SpeedWeights
 
 __all__ = [
+    "CASADI_LOCK",
     "HPIPM_USABLE",
     "HpipmSettings",
     "HpipmStatus",
@@ -201,20 +203,33 @@ class SpeedQP:
         """
         # A new buffer per call (about 30 µs): in CasADi 3.7.0 and 3.8.0 (not 3.8.2) a buffer evaluated
         # again carries state over from the last evaluation (the QP's x came out as the sum of both).
-        buffer, evaluate = self.function.buffer()
-        for index, data in self._inputs:
-            buffer.set_arg(index, data)
-        for index, data in self._outputs:
-            buffer.set_res(index, data)
+        with CASADI_LOCK:  # only the evaluation itself runs beside another thread's CasADi work
+            buffer, evaluate = self.function.buffer()
+            for index, data in self._inputs:
+                buffer.set_arg(index, data)
+            for index, data in self._outputs:
+                buffer.set_res(index, data)
         self.x.fill(np.nan)  # so that an evaluation that writes nothing cannot pass for a solution
         self.lam_g.fill(np.nan)
         evaluate()
-        code = buffer.ret()
+        with CASADI_LOCK:
+            code = buffer.ret()
+            # the buffer's own statistics (it evaluates in its own memory); CasADi 3.6 has only the
+            # function's
+            stats = buffer.stats() if hasattr(buffer, "stats") else self.function.stats()
+            status, iterations = int(stats.get("return_status", -1)), int(stats.get("iter_count", 0))
+            del buffer, evaluate, stats
         if code:
             raise RuntimeError(f"the QP's evaluation failed (CasADi code {code})")
-        # the buffer's own statistics (it evaluates in its own memory); CasADi 3.6 has only the function's
-        stats = buffer.stats() if hasattr(buffer, "stats") else self.function.stats()
-        return int(stats.get("return_status", -1)), int(stats.get("iter_count", 0))
+        return status, iterations
+
+
+#: CasADi evaluates a function in a buffer's own memory from several threads at once, but its symbols,
+#: the making of functions and buffers and its objects' reference counts are not thread-safe (two threads
+#: building QPs at once crashed the process): all of that holds this lock (re-entrant), evaluation does
+#: not (HPIPM runs without the GIL, so a plan's spare thread solves beside it:
+#: :mod:`planner.thread_solvers`).
+CASADI_LOCK = threading.RLock()
 
 
 def _layout(lower: bool, goal: bool) -> tuple[int, int]:
@@ -235,7 +250,14 @@ def build_speed_qp(
 ) -> SpeedQP:
     """The CasADi/HPIPM QP of the module docstring for ``steps`` steps of ``dt`` [s] and weights ``w``;
     with ``lower``, the one with the lower position bound's slack and row; with ``goal``, the goal's slack
-    and rows."""
+    and rows. Built holding :data:`CASADI_LOCK` (its symbols made and dropped inside it)."""
+    with CASADI_LOCK:
+        return _build(steps, dt, w, lower, settings, goal)
+
+
+def _build(
+    steps: int, dt: float, w: SpeedWeights, lower: bool, settings: HpipmSettings | None, goal: bool
+) -> SpeedQP:
     n = steps
     width, n_rows = _layout(lower, goal)
     X = ca.SX.sym("x", STATES, n + 1)

@@ -64,6 +64,7 @@ from solvers.speed_problem import (
 )
 from solvers.speed_profiles import braking_profile
 from solvers.speed_qp import (
+    CASADI_LOCK,
     HPIPM_USABLE,
     P_END_CURVATURE,
     P_V_HAT,
@@ -325,8 +326,9 @@ class SpeedSolver:
         steps, dt, weights, lower, goal = key
         qp = self._qps[key] = build_speed_qp(steps, dt, weights, lower, self._hpipm, goal=goal)
         self._build_count += 1
-        while len(self._qps) > self._max_cached:
-            self._qps.popitem(last=False)
+        with CASADI_LOCK:  # a dropped QP's CasADi objects die here
+            while len(self._qps) > self._max_cached:
+                self._qps.popitem(last=False)
         return qp, (time.perf_counter() - start) * 1e3
 
     def solve(

@@ -3,11 +3,16 @@ state and inputs they say, HPIPM's flags are named."""
 
 from __future__ import annotations
 
+import threading
+from typing import Any
+
+import casadi as ca
 import numpy as np
 import pytest
 
-from solvers.speed_problem import PIECES, SpeedProblem
+from solvers.speed_problem import PIECES, SpeedProblem, SpeedWeights
 from solvers.speed_qp import (
+    CASADI_LOCK,
     COL_A,
     COL_JERK,
     COL_S,
@@ -136,3 +141,36 @@ def test_an_iteration_cap_is_hpipms_max_iter_flag() -> None:
     qp.slopes[...] = d
     flag, iterations = qp.solve()
     assert (flag, iterations) == (HpipmStatus.MAX_ITER, 2)
+
+
+def test_casadi_qps_are_built_holding_the_lock(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """CasADi's symbols and the making of its functions are not thread-safe (two threads building QPs at
+    once crashed the process): a QP is built holding ``CASADI_LOCK``, which another thread then cannot
+    take; once built and solved, the lock is free."""
+    taken: list[bool] = []
+
+    def other_thread_takes() -> None:
+        def attempt() -> None:
+            got = CASADI_LOCK.acquire(blocking=False)
+            taken.append(got)
+            if got:
+                CASADI_LOCK.release()
+
+        thread = threading.Thread(target=attempt)
+        thread.start()
+        thread.join()
+
+    qpsol = ca.qpsol
+
+    def watched(*args: Any, **kwargs: Any) -> Any:
+        other_thread_takes()
+        return qpsol(*args, **kwargs)
+
+    monkeypatch.setattr(ca, "qpsol", watched)
+    qp = build_speed_qp(10, 0.1, SpeedWeights())
+    assert taken == [False]
+    qp.solve()
+    other_thread_takes()
+    assert taken == [False, True]
