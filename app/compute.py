@@ -88,7 +88,7 @@ async def compute(request: Request, kind: Kind, settings: Settings, executor: Pl
     budget_ms = settings.time_budget_ms
     if kind in ("plan", "candidates"):
         budget_ms = requested_budget_ms(body, settings.time_budget_ms)
-    job = Job(kind, body, arrived, settings.time_budget_ms)
+    job = Job(kind, body, arrived, settings.time_budget_ms, settings.speculate)
     try:
         outcome: Outcome = await executor.run(run_job, job, deadline=arrived + budget_ms / 1e3)
     except (Overloaded, DeadlineExceeded, ProcessDied, ShuttingDown) as exc:

@@ -52,12 +52,16 @@ from app.limits import (
 from app.models.coordinates import CartesianRequest, FrenetRequest
 from app.models.planning import PlanningRequest
 from planner.candidates import generate_candidates
+from planner.config import DEFAULT_CONFIG
 from planner.ego import start_state
 from planner.frenet import to_cartesian, to_frenet
 from planner.pipeline import plan
 from planner.reference import build_reference
 from planner.speed import reach_speed
 from planner.thread_solvers import thread_solvers
+
+#: the planner's configuration without its spare thread (``KAPPA_SPECULATE=false``)
+SERIAL_CONFIG = dataclasses.replace(DEFAULT_CONFIG, speculate=False)
 
 #: the most arrays and objects of a planning request: the reference line and its points, four width
 #: lists (lane and road), the obstacles and each one's polygon, centre or prediction, every vertex,
@@ -78,12 +82,14 @@ Kind = Literal["plan", "candidates", "frenet", "cartesian"]
 @dataclasses.dataclass(frozen=True)
 class Job:
     """What a plan process gets: the endpoint, the raw body, when the request arrived
-    (``time.monotonic()`` [s]) and the server's default budget [ms]."""
+    (``time.monotonic()`` [s]), the server's default budget [ms] and whether a plan runs the solves it
+    will likely need next on a second thread (``PlannerConfig.speculate``)."""
 
     kind: Kind
     body: bytes
     arrived: float
     default_budget_ms: float
+    speculate: bool = True
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,7 +119,8 @@ def plan_job(job: Job) -> Outcome:
     remaining = _remaining_budget(job, budget)
     started = time.monotonic()
     waited = 1e3 * (started - job.arrived)
-    result = plan(to_problem(request, time_budget_ms=remaining))
+    config = DEFAULT_CONFIG if job.speculate else SERIAL_CONFIG
+    result = plan(to_problem(request, time_budget_ms=remaining), config)
     spent = {"budget_ms": budget, "waited_ms": round(waited, 3), "ran_ms": round(_elapsed_ms(started), 3)}
     data = plan_data(result, spent)
     timing = {stage: round(float(ms), 3) for stage, ms in result.diagnostics.timing_ms.items()}
@@ -165,16 +172,17 @@ def run_job(job: Job) -> Outcome:
     return dataclasses.replace(JOBS[job.kind](job), started=started)
 
 
-def warm_up() -> None:
-    """Build what the first plans would (:func:`plan_demos`); then everything alive (modules, the built
-    QPs) leaves the cyclic garbage collector's care: a full collection, which otherwise walks all of it
-    (tens of ms, inside whichever plan triggers it), then walks only what the plans leave behind."""
-    plan_demos()
+def warm_up(speculate: bool = True) -> None:
+    """Build what the first plans would (:func:`plan_demos`, with or without the spare thread as the
+    server's jobs ask: ``speculate``); then everything alive (modules, the built QPs) leaves the cyclic
+    garbage collector's care: a full collection, which otherwise walks all of it (tens of ms, inside
+    whichever plan triggers it), then walks only what the plans leave behind."""
+    plan_demos(speculate)
     gc.collect()
     gc.freeze()
 
 
-def plan_demos() -> None:
+def plan_demos(speculate: bool = True) -> None:
     """Plan the demo, with and without a goal, with and without a car from behind, so that this thread's
     first plans do not build the speed problem (a goal's and a follower's bounds each have a QP of their
     own: 25–50 ms to build, inside the first request that needs it), nor the spare thread's solver its
@@ -185,7 +193,7 @@ def plan_demos() -> None:
     requests = (demo, with_goal, demo_with_follower(demo), demo_with_follower(with_goal))
     closing = (demo_with_follower(demo, faster=8.0), demo_with_follower(with_goal, faster=8.0))
     for request in (*requests, *closing):
-        plan_job(Job("plan", request.model_dump_json().encode(), time.monotonic(), 60_000.0))
-    spare = thread_solvers().spare
+        plan_job(Job("plan", request.model_dump_json().encode(), time.monotonic(), 60_000.0, speculate))
+    spare = thread_solvers(DEFAULT_CONFIG if speculate else SERIAL_CONFIG).spare
     if spare is not None:
         spare.wait()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import os
 import signal
 from collections.abc import AsyncIterator, Callable
@@ -113,7 +114,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     executor = PlanExecutor(
         settings.plan_pool_size(),
         settings.max_pending_plans,
-        setup=warm_up,
+        setup=functools.partial(warm_up, settings.speculate),
         max_calls=settings.max_process_calls,
         max_rss_bytes=settings.max_process_rss_mb * 1024 * 1024,
         on_replace=metrics.observe_recycle,

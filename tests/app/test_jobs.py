@@ -4,14 +4,16 @@ and without a goal, and with and without a car from behind, needs."""
 from __future__ import annotations
 
 import gc
+import json
 import threading
 import time
+from typing import Any
 
 import pytest
 
 from app.conversions import demo_goal, demo_request, demo_with_follower
 from app.jobs import Job, plan_job, warm_up
-from planner.thread_solvers import thread_solvers
+from planner.thread_solvers import Spare, thread_solvers
 
 
 def test_the_warm_up_builds_the_speed_problems_with_and_without_a_goal_and_a_follower(
@@ -44,3 +46,26 @@ def test_the_warm_up_builds_the_speed_problems_with_and_without_a_goal_and_a_fol
     # the spare thread's solver solves with a follower only (with and without a goal)
     assert built == [(4, 2), (4, 2), (4, 2), (4, 2)]
     assert frozen == [(4, 2)]  # frozen after the warm-up built them all
+
+
+def test_a_job_without_speculation_plans_on_one_thread_and_answers_the_same(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``KAPPA_SPECULATE=false`` reaches the plan as the job's ``speculate``: nothing starts on a spare
+    thread, and the trajectory, status and message are those of a plan that speculates (a car closing
+    from behind: the emergency profile is solved after the first, or beside it)."""
+    started: list[str] = []
+    submit = Spare.submit
+
+    def named(self: Spare, fn: Any, /, *args: Any, **kwargs: Any) -> Any:
+        started.append(fn.__name__)
+        return submit(self, fn, *args, **kwargs)
+
+    monkeypatch.setattr(Spare, "submit", named)
+    body = demo_with_follower(demo_request(), faster=8.0).model_dump_json().encode()
+    serial = json.loads(plan_job(Job("plan", body, time.monotonic(), 60_000.0, speculate=False)).body)
+    assert started == []
+    spared = json.loads(plan_job(Job("plan", body, time.monotonic(), 60_000.0)).body)
+    assert "emergency" in started
+    assert (serial["status"], serial["message"]) == (spared["status"], spared["message"])
+    assert serial["trajectory"] == spared["trajectory"]

@@ -74,3 +74,9 @@ def test_the_bodies_in_flight_hold_at_least_the_largest_body() -> None:
     with pytest.raises(ValueError, match="max_inflight_body_bytes"):
         Settings(max_body_bytes=4096, max_inflight_body_bytes=2048)
     assert Settings(max_body_bytes=4096, max_inflight_body_bytes=4096).max_inflight_body_bytes == 4096
+
+
+def test_speculation_is_on_unless_the_environment_turns_it_off(monkeypatch: pytest.MonkeyPatch) -> None:
+    assert Settings().speculate is True
+    monkeypatch.setenv("KAPPA_SPECULATE", "false")
+    assert Settings().speculate is False
