@@ -21,6 +21,7 @@ from app.executor import DeadlineExceeded, Overloaded, PlanExecutor
 from app.main import app, create_app
 from app.models.plan import STAGES, PlanResponse
 from app.settings import Settings
+from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.pipeline import plan
 from planner.speed import ProfileKind
 from solvers.result import SolveInfo, SolverStatus
@@ -138,8 +139,8 @@ def test_planning_failure_is_a_200_fallback(
 ) -> None:
     """A fallback answer keeps the contract even for stages that did not run (no timing, no solve)."""
 
-    def failing(problem: Any) -> Any:
-        result = plan(problem)
+    def failing(problem: Any, config: PlannerConfig = DEFAULT_CONFIG) -> Any:
+        result = plan(problem, config)
         timing = {k: v for k, v in result.diagnostics.timing_ms.items() if k not in ("speed", "trajectory")}
         not_run = SolveInfo(SolverStatus.FAILED, 0, 0.0, None, "not run")
         diagnostics = dataclasses.replace(
@@ -161,8 +162,8 @@ def test_planning_failure_is_a_200_fallback(
 def test_non_finite_plan_is_a_500_not_null(
     client: TestClient, demo: dict[str, Any], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    def broken(problem: Any) -> Any:
-        result = plan(problem)
+    def broken(problem: Any, config: PlannerConfig = DEFAULT_CONFIG) -> Any:
+        result = plan(problem, config)
         x = result.trajectory.x.copy()
         x[3] = np.nan
         return dataclasses.replace(result, trajectory=dataclasses.replace(result.trajectory, x=x))
@@ -233,9 +234,9 @@ def test_the_budget_counts_from_the_arrival(demo: dict[str, Any], monkeypatch: p
     the request has waited; a budget spent before the plan starts makes a braking fallback at once."""
     budgets: list[float] = []
 
-    def recording(problem: Any) -> Any:
+    def recording(problem: Any, config: PlannerConfig = DEFAULT_CONFIG) -> Any:
         budgets.append(problem.options.time_budget_ms)
-        return plan(problem)
+        return plan(problem, config)
 
     monkeypatch.setattr(plan_route, "plan", recording)
     tight = TestClient(create_app(Settings(plan_processes=0, time_budget_ms=1.0)))
