@@ -40,6 +40,7 @@ reads and writes numpy arrays directly (CasADi's function buffer), with no conve
 
 from __future__ import annotations
 
+import os
 import threading
 from dataclasses import dataclass
 from enum import IntEnum
@@ -230,6 +231,17 @@ class SpeedQP:
 #: not (HPIPM runs without the GIL, so a plan's spare thread solves beside it:
 #: :mod:`planner.thread_solvers`).
 CASADI_LOCK = threading.RLock()
+
+
+def _new_lock_in_child() -> None:
+    """A forked child starts with the lock free (a fork copies a lock held by another thread, not the
+    thread that would release it)."""
+    global CASADI_LOCK
+    CASADI_LOCK = threading.RLock()
+
+
+if hasattr(os, "register_at_fork"):  # (not on Windows, which does not fork)
+    os.register_at_fork(after_in_child=_new_lock_in_child)
 
 
 def _layout(lower: bool, goal: bool) -> tuple[int, int]:

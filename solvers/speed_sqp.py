@@ -51,6 +51,7 @@ from typing import Literal
 
 import numpy as np
 
+from solvers import speed_qp
 from solvers.result import Extra, SolveInfo, SolverStatus
 from solvers.speed_cost import end_speed_limit, end_terms, goal_excess, objective, violations
 from solvers.speed_problem import (
@@ -64,7 +65,6 @@ from solvers.speed_problem import (
 )
 from solvers.speed_profiles import braking_profile
 from solvers.speed_qp import (
-    CASADI_LOCK,
     HPIPM_USABLE,
     P_END_CURVATURE,
     P_V_HAT,
@@ -326,7 +326,7 @@ class SpeedSolver:
         steps, dt, weights, lower, goal = key
         qp = self._qps[key] = build_speed_qp(steps, dt, weights, lower, self._hpipm, goal=goal)
         self._build_count += 1
-        with CASADI_LOCK:  # a dropped QP's CasADi objects die here
+        with speed_qp.CASADI_LOCK:  # a dropped QP's CasADi objects die here
             while len(self._qps) > self._max_cached:
                 self._qps.popitem(last=False)
         return qp, (time.perf_counter() - start) * 1e3

@@ -3,6 +3,7 @@ state and inputs they say, HPIPM's flags are named."""
 
 from __future__ import annotations
 
+import multiprocessing
 import threading
 from typing import Any
 
@@ -174,3 +175,30 @@ def test_casadi_qps_are_built_holding_the_lock(
     qp.solve()
     other_thread_takes()
     assert taken == [False, True]
+
+
+def test_a_process_forked_while_another_thread_builds_can_build() -> None:
+    """A fork copies ``CASADI_LOCK`` held by another thread, not the thread that would release it: the
+    child gets a free lock (else its first build would wait for ever)."""
+    held, release = threading.Event(), threading.Event()
+
+    def holder() -> None:
+        with CASADI_LOCK:
+            held.set()
+            release.wait(timeout=60)
+
+    thread = threading.Thread(target=holder)
+    thread.start()
+    try:
+        assert held.wait(timeout=10)
+        child = multiprocessing.get_context("fork").Process(
+            target=lambda: build_speed_qp(5, 0.1, SpeedWeights()).solve()
+        )
+        child.start()
+        child.join(timeout=60)
+        if child.exitcode is None:
+            child.kill()
+        assert child.exitcode == 0
+    finally:
+        release.set()
+        thread.join()
