@@ -233,15 +233,17 @@ def recording(recorder: Recorder) -> Iterator[Recorder]:
         return out
 
     plan_thread = threading.current_thread()
+    counting = threading.Lock()  # the spare thread counts beside the plan's
 
     def counted_speed(self: SpeedSolver, *args: Any, **kwargs: Any) -> Any:
         out = speed_solve(self, *args, **kwargs)
-        if threading.current_thread() is plan_thread:
-            recorder.counts.speed_solves += 1
-        else:
-            recorder.counts.spare_speed_solves += 1
-        recorder.counts.sqp_qps += int(out.info.extras.get("qp_solves", 0))
-        recorder.counts.hpipm_iterations += int(out.info.iterations)
+        with counting:
+            if threading.current_thread() is plan_thread:
+                recorder.counts.speed_solves += 1
+            else:
+                recorder.counts.spare_speed_solves += 1
+            recorder.counts.sqp_qps += int(out.info.extras.get("qp_solves", 0))
+            recorder.counts.hpipm_iterations += int(out.info.iterations)
         return out
 
     loop_plan = sim.plan
