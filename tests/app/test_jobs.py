@@ -7,13 +7,13 @@ import gc
 import json
 import threading
 import time
-from typing import Any
 
 import pytest
 
 from app.conversions import demo_goal, demo_request, demo_with_follower
 from app.jobs import Job, plan_job, warm_up
-from planner.thread_solvers import Spare, thread_solvers
+from planner.thread_solvers import thread_solvers
+from tests.planner.spies import started_work
 
 
 def test_the_warm_up_builds_the_speed_problems_with_and_without_a_goal_and_a_follower(
@@ -54,14 +54,7 @@ def test_a_job_without_speculation_plans_on_one_thread_and_answers_the_same(
     """``KAPPA_SPECULATE=false`` reaches the plan as the job's ``speculate``: nothing starts on a spare
     thread, and the trajectory, status and message are those of a plan that speculates (a car closing
     from behind: the emergency profile is solved after the first, or beside it)."""
-    started: list[str] = []
-    submit = Spare.submit
-
-    def named(self: Spare, fn: Any, /, *args: Any, **kwargs: Any) -> Any:
-        started.append(fn.__name__)
-        return submit(self, fn, *args, **kwargs)
-
-    monkeypatch.setattr(Spare, "submit", named)
+    started = started_work(monkeypatch)
     body = demo_with_follower(demo_request(), faster=8.0).model_dump_json().encode()
     serial = json.loads(plan_job(Job("plan", body, time.monotonic(), 60_000.0, speculate=False)).body)
     assert started == []

@@ -19,3 +19,20 @@ def counted_calls(monkeypatch: pytest.MonkeyPatch, owner: type, name: str) -> li
 
     monkeypatch.setattr(owner, name, counted)
     return calls
+
+
+def started_work(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """Replace ``planner.thread_solvers.Spare.submit`` by a wrapper that appends the name of each function
+    handed to a plan's spare thread to the returned list (``"emergency"``: the speed stage's profile with
+    the emergency jerk; ``"_solve_elastic"``: a lateral QP's elastic problem); undone after the test."""
+    from planner.thread_solvers import Spare
+
+    started: list[str] = []
+    submit = Spare.submit
+
+    def named(self: Spare, fn: Any, /, *args: Any, **kwargs: Any) -> Any:
+        started.append(fn.__name__)
+        return submit(self, fn, *args, **kwargs)
+
+    monkeypatch.setattr(Spare, "submit", named)
+    return started

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import shapely
 from scenario_roads import Road, arc_piece, follow_prediction, straight_piece
+from spies import started_work
 from traffic import LANE, ROAD, car
 
 from planner.collision import box_corners, prediction_at
@@ -24,7 +25,6 @@ from planner.pipeline import plan
 from planner.problem import DynamicObstacle, Ego, Lane, Options, PlanningProblem, Vehicle
 from planner.result import PlanResult
 from planner.speed import ProfileKind
-from planner.thread_solvers import Spare
 from solvers.speed_problem import SpeedProblem
 from solvers.speed_sqp import SpeedSolver
 from tests.regression.checks import limit_problems
@@ -141,19 +141,14 @@ def test_the_second_profile_solved_beside_the_first_on_a_spare_thread_is_the_sam
     emergency jerk, needed after the first, starts on the spare thread beside it; the answer is the one
     planned without a spare thread, where the same profile is solved after the first."""
     problem, _ = _single_lane(limit=10.0)
-    started: list[str] = []
+    started = started_work(monkeypatch)
     solves: list[float] = []
-    submit, solve = Spare.submit, SpeedSolver.solve
-
-    def counted_submit(self: Spare, fn: Any, /, *args: Any, **kwargs: Any) -> Any:
-        started.append(fn.__name__)
-        return submit(self, fn, *args, **kwargs)
+    solve = SpeedSolver.solve
 
     def counted_solve(self: SpeedSolver, sp: SpeedProblem, **kwargs: Any) -> Any:
         solves.append(sp.jerk_max)
         return solve(self, sp, **kwargs)
 
-    monkeypatch.setattr(Spare, "submit", counted_submit)
     monkeypatch.setattr(SpeedSolver, "solve", counted_solve)
     alone = plan(problem, replace(DEFAULT_CONFIG, speculate=False))
     assert started == [] and solves == [8.0, 30.0]  # the emergency jerk's profile after the first

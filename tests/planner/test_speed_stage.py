@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 from scenario_roads import Road, arc_piece, follow_prediction, straight_piece
-from spies import counted_calls
+from spies import counted_calls, started_work
 from traffic import car, violations
 
 from planner import drive
@@ -377,14 +377,7 @@ def test_into_a_bend_too_fast_for_the_comfortable_jerk_the_second_profile_starts
     under the bend's limit in time, so the emergency jerk's profile starts on the spare thread beside the
     first; the answer is the one planned without a spare thread. At 8 m/s nothing starts."""
     problem = two_lane_problem(hairpin(15.0, leg=30.0), speed=18.0, road=False)
-    started: list[str] = []
-    submit = Spare.submit
-
-    def named(self: Spare, fn: Any, /, *args: Any, **kwargs: Any) -> Any:
-        started.append(fn.__name__)
-        return submit(self, fn, *args, **kwargs)
-
-    monkeypatch.setattr(Spare, "submit", named)
+    started = started_work(monkeypatch)
     alone = plan(problem, replace(DEFAULT_CONFIG, speculate=False))
     assert started == []
     beside = plan(problem)
