@@ -52,7 +52,7 @@ from app.limits import (
 from app.models.coordinates import CartesianRequest, FrenetRequest
 from app.models.planning import PlanningRequest
 from planner.candidates import generate_candidates
-from planner.config import DEFAULT_CONFIG
+from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.ego import start_state
 from planner.frenet import to_cartesian, to_frenet
 from planner.pipeline import plan
@@ -62,6 +62,11 @@ from planner.thread_solvers import thread_solvers
 
 #: the planner's configuration without its spare thread (``KAPPA_SPECULATE=false``)
 SERIAL_CONFIG = dataclasses.replace(DEFAULT_CONFIG, speculate=False)
+
+
+def planner_config(speculate: bool) -> PlannerConfig:
+    """The planner's configuration of a job: with its spare thread or without (``KAPPA_SPECULATE``)."""
+    return DEFAULT_CONFIG if speculate else SERIAL_CONFIG
 
 #: the most arrays and objects of a planning request: the reference line and its points, four width
 #: lists (lane and road), the obstacles and each one's polygon, centre or prediction, every vertex,
@@ -119,8 +124,7 @@ def plan_job(job: Job) -> Outcome:
     remaining = _remaining_budget(job, budget)
     started = time.monotonic()
     waited = 1e3 * (started - job.arrived)
-    config = DEFAULT_CONFIG if job.speculate else SERIAL_CONFIG
-    result = plan(to_problem(request, time_budget_ms=remaining), config)
+    result = plan(to_problem(request, time_budget_ms=remaining), planner_config(job.speculate))
     spent = {"budget_ms": budget, "waited_ms": round(waited, 3), "ran_ms": round(_elapsed_ms(started), 3)}
     data = plan_data(result, spent)
     timing = {stage: round(float(ms), 3) for stage, ms in result.diagnostics.timing_ms.items()}
@@ -194,6 +198,6 @@ def plan_demos(speculate: bool = True) -> None:
     closing = (demo_with_follower(demo, faster=8.0), demo_with_follower(with_goal, faster=8.0))
     for request in (*requests, *closing):
         plan_job(Job("plan", request.model_dump_json().encode(), time.monotonic(), 60_000.0, speculate))
-    spare = thread_solvers(DEFAULT_CONFIG if speculate else SERIAL_CONFIG).spare
+    spare = thread_solvers(planner_config(speculate)).spare
     if spare is not None:
         spare.wait()
