@@ -25,6 +25,7 @@ classes), so that a run against the previous commit can be interleaved with this
 
     python bench/cycles.py                      # all scenes, the requests' own vehicle (point model)
     python bench/cycles.py --vehicle car --only USA_Peach-3_1_T-1 --worst 20
+    python bench/cycles.py --xml DIR --vehicle car  # CommonRoad XML scenes (bench/swap_ego.py's, say)
     python bench/cycles.py --json cycles.json   # every cycle as JSON, e.g. to compare two checkouts
     python bench/cycles.py --compare before.json after.json
     python bench/cycles.py --dump DIR           # the worst cycles' requests, to replay one of them:
@@ -264,10 +265,12 @@ def run(
     duration: float,
     keep_problems: bool = False,
     freeze: bool = True,
+    xml: Path | None = None,
 ) -> tuple[Recorder, dict[str, Any]]:
-    """Every scene's closed loop (``names``: file stems; None: all); the recorder and per-scene results."""
+    """Every scene's closed loop (``names``: file stems; None: all; ``xml``: the CommonRoad XML files of
+    that directory instead of the shared requests); the recorder and per-scene results."""
     cr = _commonroad_bench()
-    paths = cr.scene_paths(only=names)
+    paths = cr.scene_paths(xml=xml, only=names)
     recorder = Recorder(keep_problems=keep_problems, freeze=freeze)
     scenes: dict[str, Any] = {}
     if paths:  # warm up as a plan process does at start: the first plans build the speed problems
@@ -489,6 +492,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", nargs="*", default=None, help="scene names (file stems) to run")
     parser.add_argument("--vehicle", choices=("request", "car", "point"), default="request")
+    parser.add_argument(
+        "--xml", type=Path, default=None, help="the CommonRoad XML files in DIR instead of the requests"
+    )
     parser.add_argument("--duration", type=float, default=35.0, help="simulated seconds per scene at most")
     parser.add_argument("--worst", type=int, default=15, help="how many of the slowest cycles to show")
     parser.add_argument("--json", type=Path, default=None, help="write every cycle to this JSON file")
@@ -510,7 +516,12 @@ def main(argv: list[str] | None = None) -> int:
     load0 = os.getloadavg()
     t0 = time.perf_counter()
     recorder, scenes = run(
-        args.only, args.vehicle, args.duration, keep_problems=args.dump is not None, freeze=not args.no_freeze
+        args.only,
+        args.vehicle,
+        args.duration,
+        keep_problems=args.dump is not None,
+        freeze=not args.no_freeze,
+        xml=args.xml,
     )
     total = time.perf_counter() - t0
     load1 = os.getloadavg()
