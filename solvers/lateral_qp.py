@@ -36,6 +36,7 @@ from solvers.lateral_qp_problem import (
     objective,
     qp_matrices,
     qp_vectors,
+    reach_gap,
 )
 from solvers.result import Extra, SolveInfo, SolverStatus
 from solvers.validation import integer
@@ -126,8 +127,12 @@ class LateralQPSolver:
     breaking the offset and curvature bounds least (``relaxed``: usable, not converged): an infeasible QP
     gets the same path whether or not OSQP found out within its iterations (with ``relax=False`` the
     proof comes back as ``infeasible`` on OSQP's result, and :meth:`relax` solves the elastic problem
-    later, for a caller that may not need it). Otherwise OSQP's result is
-    returned, with the second backend's verdict beside it. A result from Clarabel carries OSQP's own as
+    later, for a caller that may not need it). Where the initial state cannot reach the box bounds within
+    the jerk limit (:func:`~solvers.lateral_qp_problem.reach_gap`: the usual cause, an ego outside its
+    bounds that cannot steer back in time), that is the proof: the elastic problem starts before OSQP's
+    solve (on the spare thread, below) and the second backend is not asked (on the closed loops of
+    ``bench/cycles.py``, 199 of its 252 proofs of infeasibility; the answers are the same). Otherwise
+    OSQP's result is returned, with the second backend's verdict beside it. A result from Clarabel carries OSQP's own as
     ``first`` (its unfinished iterate, for a caller whose checks prefer it). Every solve stops on
     iteration counts: the same problem gets the same answer.
 
@@ -288,6 +293,12 @@ class LateralQPSolver:
 
         n = problem.n
         q, l, u = qp_vectors(problem)  # noqa: E741
+        handing = self._second_backend and second_backend
+        # proven infeasible before any solve (the usual case: an ego that cannot steer back inside its
+        # bounds in time): the second backend's proof is not needed, the elastic problem starts at once
+        gap = reach_gap(problem) if handing else 0.0
+        unreachable = gap > self._feasibility_tol
+        started = unreachable and (relax or relax_later) and self._start_elastic(problem, time_limit_s)
         workspace, setup_ms = self._workspace(problem, q, l, u, fresh=not warm_start)
         solver = workspace.solver
         if workspace.max_iter != max_iter or workspace.time_limit_s != limit:
@@ -378,12 +389,20 @@ class LateralQPSolver:
             """What is left of ``time_limit_s`` for the second backend [s] (None: no limit)."""
             return None if time_limit_s is None else max(limit - _since(start), 1e-3)
 
-        if not (self._second_backend and second_backend and (hand_over or (proven and relax))):
+        if not (handing and (hand_over or (proven and relax))):
+            if started and not proven:
+                self._drop_elastic(problem)
             return replace(result(x, status, message), infeasible=proven)
         if proven:  # the certificate is the proof (no second opinion on it): straight to the elastic QP
             return self.relax(
                 problem, replace(result(x, status, message), infeasible=True), time_limit_s=remaining()
             )
+        if unreachable and not status.converged:
+            message += f"; infeasible: the initial state misses the bounds by {gap:.2e}"
+            first = replace(result(x, status, message), infeasible=True)
+            return self.relax(problem, first, time_limit_s=remaining()) if relax else first
+        if started:  # OSQP converged inaccurately on a problem proven infeasible: the second backend judges
+            self._drop_elastic(problem)
         # where the QP proves infeasible its elastic problem is next: started beside the proof
         likely = (relax or relax_later) and float(info.prim_res) > self._spare_residual
         started = likely and self._start_elastic(problem, remaining())

@@ -77,6 +77,7 @@ __all__ = [
     "objective",
     "qp_matrices",
     "qp_vectors",
+    "reach_gap",
 ]
 
 
@@ -393,6 +394,43 @@ def integrate_profile(problem: LateralQPProblem, ddd: FloatArray) -> FloatArray:
     rise = ds * slope[:-1] + ds**2 / 3.0 * curv[:-1] + ds**2 / 6.0 * curv[1:]
     d = problem.d0 + np.concatenate(([0.0], np.cumsum(rise)))
     return np.concatenate([d, slope, curv])
+
+
+def reach_gap(problem: LateralQPProblem) -> float:
+    r"""How far [in each row's unit: m, -, 1/m] every path from the initial state misses a box bound: a
+    proof of infeasibility where positive, found without solving (0 where none is found).
+
+    Every ``d_i``, ``d′_i`` and ``d″_i`` of a path that meets the equality rows and the jerk rows grows
+    with each jerk (non-negative coefficients), so the lowest path within the jerk rows and the ``d″``
+    boxes bounds them from below::
+
+        g_0 = d″_0,   g_{i+1} = max(ddd_lower,i+1, g_i + Δs·jerk_lower,i)      (g ≤ d″ of any such path)
+
+    and ``d, d′`` integrated from ``g`` bound ``d, d′`` from below (likewise from above). The gap is the
+    largest excess of such a bound over the opposite box bound at a knot ``i ≥ 1``: an ego that cannot
+    steer back inside its bounds within the jerk limit (the usual cause), say. The offset bounds
+    themselves are not propagated, so a positive gap proves infeasibility but 0 does not prove the
+    opposite. Unbounded jerk gives 0."""
+    jerk_lower, jerk_upper = problem.jerk_bounds()
+    if not (np.all(np.isfinite(jerk_lower)) and np.all(np.isfinite(jerk_upper))):
+        return 0.0
+    n, ds = problem.n, problem.ds
+    box_l, box_u = problem._bounds()
+    box_l[[0, n, 2 * n]] = box_u[[0, n, 2 * n]] = (problem.d0, problem.dd0, problem.ddd0)
+
+    def extreme(step: FloatArray, box: FloatArray, sign: float) -> FloatArray:
+        # g_i − c_i = max(box_i − c_i, g_{i−1} − c_{i−1}), c the jerks accumulated; the upper path as the
+        # lower one of the mirrored problem (sign −1: steps and box negated)
+        c = np.concatenate(([0.0], np.cumsum(ds * step)))
+        curv = sign * (c + np.maximum.accumulate(box[2 * n :] - c))
+        slope = problem.dd0 + np.concatenate(([0.0], np.cumsum(0.5 * ds * (curv[:-1] + curv[1:]))))
+        rise = ds * slope[:-1] + ds**2 / 3.0 * curv[:-1] + ds**2 / 6.0 * curv[1:]
+        d = problem.d0 + np.concatenate(([0.0], np.cumsum(rise)))
+        return np.concatenate([d, slope, curv])
+
+    low = extreme(jerk_lower, box_l, 1.0)
+    high = extreme(-jerk_upper, -box_u, -1.0)
+    return float(max(np.max(low - box_u), np.max(box_l - high), 0.0))
 
 
 def clipped_reference(problem: LateralQPProblem) -> FloatArray:

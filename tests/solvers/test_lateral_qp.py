@@ -14,6 +14,7 @@ import scipy.sparse as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from solvers.conic_qp import solve_conic_qp
 from solvers.lateral_qp import (
     LateralQPProblem,
     LateralQPResult,
@@ -22,6 +23,7 @@ from solvers.lateral_qp import (
     build_qp_matrices,
     objective,
 )
+from solvers.lateral_qp_problem import reach_gap
 from solvers.result import SolverStatus
 
 TOL = 1e-4
@@ -379,23 +381,50 @@ def test_the_second_backend_gives_the_same_answer_every_time() -> None:
     assert np.array_equal(first.x, again.x)
 
 
-def test_an_infeasible_problem_osqp_did_not_finish_gets_the_path_breaking_its_bounds_least() -> None:
-    """No solution: the elastic problem's path, usable (``relaxed``), consistent, its relaxation reported;
-    OSQP's own iterate beside it."""
+def _pinched(n: int = 60) -> LateralQPProblem:
+    """A corridor that jumps 4 m sideways within one knot (0.5 m) halfway: each side is within reach of the
+    start, but no path of slope ≤ 2.5 (what the 0.05 1/m² jerk limit gives in 10 m) makes the jump."""
+    d_lower, d_upper = np.full(n, -5.0), np.full(n, 5.0)
+    d_lower[20], d_upper[21] = 2.0, -2.0
+    return LateralQPProblem(ds=0.5, d_lower=d_lower, d_upper=d_upper, d_ref=np.zeros(n), jerk_max=0.05)
+
+
+def test_the_reach_of_the_start_proves_infeasibility_without_a_solve() -> None:
+    """``reach_gap``: from 3 m outside a ±0.5 m corridor, turning back at the jerk limit from rest gives
+    ``d = 3 − j·s³/6``, which misses the bound most at the first knot; a pinched corridor within reach of
+    the start on either side is not proven (the offset bounds are not propagated), nor is a feasible one."""
     problem = _unreachable()
+    assert reach_gap(problem) == pytest.approx(3.0 - 0.05 * 0.5**3 / 6.0 - 0.5, abs=1e-12)
+    assert reach_gap(_pinched()) == 0.0
+    assert reach_gap(_lane_change()) == 0.0
+    # no jerk limit: nothing is out of reach
+    assert reach_gap(replace(problem, jerk_max=np.inf)) == 0.0
+
+
+@pytest.mark.parametrize("case", ["unreachable", "pinched"])
+def test_an_infeasible_problem_osqp_did_not_finish_gets_the_path_breaking_its_bounds_least(case: str) -> None:
+    """No solution: the elastic problem's path, usable (``relaxed``), consistent, its relaxation reported;
+    OSQP's own iterate beside it. The proof is the start's reach where it misses the bounds (no second
+    backend's solve for it), else the second backend's."""
+    problem = _unreachable() if case == "unreachable" else _pinched()
     result = LateralQPSolver().solve(problem, max_iter=5)
     assert result.info.status is SolverStatus.RELAXED and result.info.usable and not result.info.converged
     extras = result.info.extras
-    # Clarabel proves the QP infeasible, then solves its elastic problem
-    assert (extras["backend"], extras["second_status"]) == ("clarabel", "PrimalInfeasible")
-    assert (extras["backend_status"], extras["returned"]) == ("Solved", "relaxed")
+    if case == "unreachable":
+        assert extras["second_status"] == ""
+        assert "the initial state misses the bounds by" in result.info.message
+    else:  # Clarabel proves the QP infeasible, then solves its elastic problem
+        assert extras["second_status"] == "PrimalInfeasible"
+    assert (extras["backend"], extras["backend_status"]) == ("clarabel", "Solved")
+    assert extras["returned"] == "relaxed"
     assert "the bounds relaxed by up to" in result.info.message
     violations = _violations(problem, result)
     assert max(violations[k] for k in ("initial", "jerk", "slope_integration", "offset_integration")) < 1e-6
     _assert_reported(problem, result)
-    # it turns back towards the corridor as hard as the jerk limit allows: never farther out than it starts
-    assert np.all(result.d <= problem.d0 + 1e-9) and result.d[-1] < problem.d0 - 0.5
     assert result.first is not None and result.first.info.status is SolverStatus.MAX_ITERATIONS
+    if case == "unreachable":
+        # it turns back towards the corridor as hard as the jerk limit allows: never farther out than at first
+        assert np.all(result.d <= problem.d0 + 1e-9) and result.d[-1] < problem.d0 - 0.5
 
 
 def test_an_infeasible_problem_gets_the_same_path_whoever_proves_it() -> None:
@@ -726,6 +755,29 @@ def test_property_feasible_problems_solve_within_their_constraints(problem: Late
         _assert_feasible(problem, result)
     elif result.info.status is SolverStatus.SOLVED_INACCURATE:
         assert result.info.max_violation <= _admm_tol(result)
+
+
+@settings(max_examples=60, deadline=None)
+@given(feasible_problems())
+def test_property_the_reach_of_the_start_never_refutes_a_feasible_problem(problem: LateralQPProblem) -> None:
+    """``reach_gap`` proves infeasibility only: a problem built round a feasible path gets 0."""
+    assert reach_gap(problem) == 0.0
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    feasible_problems(), st.floats(min_value=-4.0, max_value=4.0), st.floats(min_value=-0.5, max_value=0.5)
+)
+def test_property_what_the_reach_of_the_start_refutes_the_second_backend_finds_infeasible(
+    problem: LateralQPProblem, shift: float, turn: float
+) -> None:
+    """Moved off its feasible path at the start (offset and slope), a problem the start's reach proves
+    infeasible is infeasible for Clarabel too."""
+    moved = replace(problem, d0=problem.d0 + shift, dd0=problem.dd0 + turn)
+    gap = reach_gap(moved)
+    if gap > 1e-6:
+        P, q, A, lower, upper = build_qp_matrices(moved)
+        assert solve_conic_qp(P, q, A, lower, upper, max_iter=200).info.status is SolverStatus.INFEASIBLE
 
 
 def test_a_cold_solve_after_another_reuses_the_setup_and_gives_the_first_answer_bit_for_bit() -> None:

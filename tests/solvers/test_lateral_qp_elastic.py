@@ -79,15 +79,17 @@ def test_the_solver_hands_an_unfinished_qp_to_the_elastic_problem() -> None:
 
 
 def test_without_relaxation_an_unfinished_infeasible_qp_comes_back_with_the_proof_only() -> None:
-    """``relax=False`` (a caller that takes converged answers only): OSQP's unfinished result, Clarabel's
-    proof of infeasibility beside it, no elastic path."""
+    """``relax=False`` (a caller that takes converged answers only): OSQP's unfinished result, the proof
+    of infeasibility beside it (here the start's reach: the second backend is not asked), no elastic
+    path."""
     problem = _corridor(width=0.3, d0=2.0)
     result = LateralQPSolver().solve(problem, max_iter=3, relax=False)
     assert result.info.status is SolverStatus.MAX_ITERATIONS and not result.info.converged
+    assert result.infeasible and "the initial state misses the bounds" in result.info.message
     extras = result.info.extras
     assert (extras["backend"], extras["second_status"], extras["returned"]) == (
         "osqp",
-        "PrimalInfeasible",
+        "",
         "integrated_iterate",
     )
     relaxed = LateralQPSolver().solve(problem, max_iter=3)
