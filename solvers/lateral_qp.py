@@ -132,9 +132,9 @@ class LateralQPSolver:
     bounds that cannot steer back in time), that is the proof: the elastic problem starts before OSQP's
     solve (on the spare thread, below) and the second backend is not asked (on the closed loops of
     ``bench/cycles.py``, 199 of its 252 proofs of infeasibility; the answers are the same). Otherwise
-    OSQP's result is returned, with the second backend's verdict beside it. A result from Clarabel carries OSQP's own as
-    ``first`` (its unfinished iterate, for a caller whose checks prefer it). Every solve stops on
-    iteration counts: the same problem gets the same answer.
+    OSQP's result is returned, with the second backend's verdict beside it. A result from Clarabel
+    carries OSQP's own as ``first`` (its unfinished iterate, for a caller whose checks prefer it). Every
+    solve stops on iteration counts: the same problem gets the same answer.
 
     A result's ``info.extras`` holds ``backend`` (``"osqp"`` or ``"clarabel"``: which one's answer this
     is), ``backend_status`` (that backend's status text), ``osqp_status``, ``second_status`` (the second
@@ -273,7 +273,10 @@ class LateralQPSolver:
                 where OSQP had no answer), solve the elastic problem for the least-violating path
                 (``relaxed``). False: return OSQP's result with the proof (its own, or beside it;
                 ``infeasible`` set) — for a caller that takes converged answers only, which the elastic
-                path never is, or that relaxes it later only where it needs it (:meth:`relax`).
+                path never is, or that relaxes it later only where it needs it (:meth:`relax`). For the
+                former (``relax_later`` False) a QP the start's reach proves infeasible is not solved at
+                all: the reference clipped to the bounds comes back, ``infeasible``, ``osqp_status``
+                "not run".
             relax_later: with ``relax=False``, the caller may call :meth:`relax` on the result: with a
                 spare thread its elastic problem starts beside the second backend's solve.
 
@@ -298,6 +301,8 @@ class LateralQPSolver:
         # bounds in time): the second backend's proof is not needed, the elastic problem starts at once
         gap = reach_gap(problem) if handing else 0.0
         unreachable = gap > self._feasibility_tol
+        if unreachable and not (relax or relax_later):
+            return self._unreachable(problem, l, u, gap, start)  # a caller that takes converged answers only
         started = unreachable and (relax or relax_later) and self._start_elastic(problem, time_limit_s)
         workspace, setup_ms = self._workspace(problem, q, l, u, fresh=not warm_start)
         solver = workspace.solver
@@ -434,6 +439,43 @@ class LateralQPSolver:
         if not relax:
             return first
         return self.relax(problem, first, time_limit_s=remaining())
+
+    def _unreachable(
+        self, problem: LateralQPProblem, lower: FloatArray, upper: FloatArray, gap: float, start: float
+    ) -> LateralQPResult:
+        """The result of a solve proven infeasible before it began (the initial state misses the bounds by
+        ``gap``, :func:`~solvers.lateral_qp_problem.reach_gap`) for a caller that takes converged answers
+        only: the reference clipped to the bounds, ``infeasible``, no backend run. The set-up's next solve
+        starts from the clipped reference, as after an unconverged solve."""
+        key: _MatrixKey = (problem.n, problem.ds, problem.weights, problem.end_d is not None)
+        workspace = self._workspaces.get(key)
+        if workspace is not None:
+            workspace.last_x = workspace.last_y = None
+        _, A = qp_matrices(*key)
+        x = clipped_reference(problem)
+        n = problem.n
+        info = SolveInfo(
+            status=SolverStatus.INFEASIBLE,
+            iterations=0,
+            solve_time_ms=_since(start) * 1e3,
+            objective=None,
+            message=(
+                f"infeasible: the initial state misses the bounds by {gap:.2e}; not solved; returned the "
+                "reference clipped to the bounds (not a solution)"
+            ),
+            max_violation=max_violation(A @ x, lower, upper),
+            extras={
+                "backend": "osqp",
+                "backend_status": "not run",
+                "osqp_status": "not run",
+                "second_status": "",
+                "polished": False,
+                "returned": "clipped_reference",
+            },
+        )
+        return LateralQPResult(
+            info=info, d=x[:n].copy(), dd=x[n : 2 * n].copy(), ddd=x[2 * n :].copy(), x=x, infeasible=True
+        )
 
     def _solve_elastic(self, problem: LateralQPProblem, time_limit_s: float | None) -> ConicQPResult:
         """``problem``'s elastic problem solved by the second backend within ``time_limit_s`` [s]."""

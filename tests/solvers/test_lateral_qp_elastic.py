@@ -79,31 +79,45 @@ def test_the_solver_hands_an_unfinished_qp_to_the_elastic_problem() -> None:
 
 
 def test_without_relaxation_an_unfinished_infeasible_qp_comes_back_with_the_proof_only() -> None:
-    """``relax=False`` (a caller that takes converged answers only): OSQP's unfinished result, the proof
-    of infeasibility beside it (here the start's reach: the second backend is not asked), no elastic
-    path."""
+    """``relax=False`` (a caller that takes converged answers only): the proof of infeasibility, no
+    elastic path. Where the start's reach proves it, nothing is solved (the reference clipped to the
+    bounds comes back); where the second backend does (a corridor pinched beyond the jerk limit's slope,
+    each side within reach), OSQP's unfinished result with the proof beside it."""
     problem = _corridor(width=0.3, d0=2.0)
     result = LateralQPSolver().solve(problem, max_iter=3, relax=False)
-    assert result.info.status is SolverStatus.MAX_ITERATIONS and not result.info.converged
-    assert result.infeasible and "the initial state misses the bounds" in result.info.message
+    assert result.info.status is SolverStatus.INFEASIBLE and result.infeasible and not result.info.usable
+    assert result.info.iterations == 0 and "the initial state misses the bounds" in result.info.message
+    extras = result.info.extras
+    assert (extras["osqp_status"], extras["second_status"], extras["returned"]) == (
+        "not run",
+        "",
+        "clipped_reference",
+    )
+    assert result.d[0] == problem.d0 and np.all(np.abs(result.d[1:]) <= 0.3)
+    pinched = _corridor(width=3.0)
+    lower, upper = pinched.d_lower.copy(), pinched.d_upper.copy()
+    lower[30], upper[31] = 2.0, -2.0
+    pinched = replace(pinched, d_lower=lower, d_upper=upper)
+    result = LateralQPSolver().solve(pinched, max_iter=3, relax=False)
+    assert result.info.status is SolverStatus.MAX_ITERATIONS and result.infeasible
     extras = result.info.extras
     assert (extras["backend"], extras["second_status"], extras["returned"]) == (
         "osqp",
-        "",
+        "PrimalInfeasible",
         "integrated_iterate",
     )
-    relaxed = LateralQPSolver().solve(problem, max_iter=3)
+    relaxed = LateralQPSolver().solve(pinched, max_iter=3)
     assert relaxed.info.status is SolverStatus.RELAXED
     np.testing.assert_array_equal(relaxed.first.x if relaxed.first is not None else None, result.x)
 
 
 def test_a_proof_relaxed_later_is_the_path_relaxed_at_once() -> None:
-    """``relax=False`` marks the proof (``infeasible``: Clarabel's after OSQP ran out, OSQP's own
-    certificate) and :meth:`LateralQPSolver.relax` then gives exactly what ``relax=True`` gives at once: the
-    same elastic path, status and extras, the unrelaxed result as ``first``; a result without a proof is
-    misuse."""
+    """``relax=False, relax_later=True`` marks the proof (``infeasible``: the start's reach after OSQP ran
+    out, OSQP's own certificate) and :meth:`LateralQPSolver.relax` then gives exactly what ``relax=True``
+    gives at once: the same elastic path, status and extras, the unrelaxed result as ``first``; a result
+    without a proof is misuse."""
     for problem, max_iter in ((_corridor(width=0.3, d0=2.0), 3), (_corridor(width=0.3, d0=2.0), 4000)):
-        proof = LateralQPSolver().solve(problem, max_iter=max_iter, relax=False)
+        proof = LateralQPSolver().solve(problem, max_iter=max_iter, relax=False, relax_later=True)
         assert proof.infeasible and not proof.info.converged
         later = LateralQPSolver().relax(problem, proof)
         at_once = LateralQPSolver().solve(problem, max_iter=max_iter)
