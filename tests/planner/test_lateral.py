@@ -545,3 +545,41 @@ def test_past_its_budget_the_lateral_stage_skips_the_solves_that_only_improve_it
     # the QP has no solution at the allowed curvature: unbudgeted, the vehicle's own limit is tried too
     assert unbudgeted >= 2 and len(solves) < unbudgeted
     assert free.status == spent.status == "stopped"
+
+
+def test_a_start_that_cannot_reach_its_bounds_is_proven_infeasible_without_the_second_backend(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """An ego 0.75 m outside its lane on a straight at 10 m/s, too fast to steer back within the bounds'
+    ramp: its lateral QP is proven infeasible by the start's reach (``reach_gap``), not by the second
+    backend, and the answer is the one the second backend's proof gave."""
+    import solvers.lateral_qp as lateral_qp
+
+    base = demo_problem()
+    problem = replace(
+        base,
+        reference_line=straight(150.0),
+        lane=Lane(left_width=1.75, right_width=1.75),
+        obstacles=(),
+        ego=Ego(x=5.0, y=2.5, heading=0.0, speed=10.0),
+    )
+    solves: list[str] = []
+    solve_conic_qp = lateral_qp.solve_conic_qp
+
+    def counted(*args: object, **kwargs: object) -> object:
+        solves.append("conic")
+        return solve_conic_qp(*args, **kwargs)
+
+    monkeypatch.setattr(lateral_qp, "solve_conic_qp", counted)
+    elastic = counted_calls(monkeypatch, LateralQPSolver, "_solve_elastic")
+    proven = plan(problem)
+    assert proven.status == "ok" and elastic
+    proofs = len(solves) - len(elastic)  # the second backend's solves that are not elastic problems
+    solves.clear()
+    elastic.clear()
+    monkeypatch.setattr(lateral_qp, "reach_gap", lambda qp: 0.0)  # the proof left to the second backend
+    by_clarabel = plan(problem)
+    assert len(solves) - len(elastic) > proofs
+    assert (by_clarabel.status, by_clarabel.message) == (proven.status, proven.message)
+    for name in ("t", "x", "y", "heading", "curvature", "v", "a", "s", "d"):
+        np.testing.assert_array_equal(getattr(by_clarabel.trajectory, name), getattr(proven.trajectory, name))
