@@ -279,8 +279,9 @@ def run(
         for path in paths:
             recorder.scene, recorder.cycle = path.stem, 0
             row = cr.run_one(path, duration, vehicle)
-            if row.result is None:
-                raise RuntimeError(f"{path.stem}: {row.outcome.error}")
+            if row.result is None:  # a scene the converter refuses (its cycles are none of ours)
+                print(f"{path.stem}: not driven: {row.outcome.error}", file=sys.stderr)
+                continue
             m = row.result.metrics
             scenes[path.stem] = {
                 "termination": m.termination,
