@@ -146,10 +146,11 @@ class LateralQPSolver:
 
     Spare thread. Given an executor (``spare``: one worker, used by nothing else while a solve waits on
     it), the elastic problem of a QP handed to the second backend starts there beside the second
-    backend's own solve, where the caller relaxes an infeasible QP (``relax``, or ``relax_later`` for a
-    later :meth:`relax`): an infeasible QP then costs the longer of the two solves, not their sum. The
-    answers are the same (Clarabel's solves depend on their problem only); a feasible QP leaves the
-    elastic solve's work unused on the spare thread.
+    backend's own solve (of a QP the start's reach proves infeasible, before OSQP's), where the caller
+    relaxes an infeasible QP (``relax``, or ``relax_later`` for a later :meth:`relax`): an infeasible QP
+    then costs the longer of the two solves, not their sum. The answers are the same (Clarabel's solves
+    depend on their problem only); a feasible QP leaves the elastic solve's work unused on the spare
+    thread.
 
     Args:
         eps_abs, eps_rel: OSQP's absolute and relative tolerances.
@@ -278,7 +279,8 @@ class LateralQPSolver:
                 all: the reference clipped to the bounds comes back, ``infeasible``, ``osqp_status``
                 "not run".
             relax_later: with ``relax=False``, the caller may call :meth:`relax` on the result: with a
-                spare thread its elastic problem starts beside the second backend's solve.
+                spare thread its elastic problem starts beside the second backend's solve (beside
+                OSQP's, where the start's reach proves the QP infeasible).
 
         Raises:
             ValueError: ``problem`` is not a :class:`LateralQPProblem`, or a limit is not positive.
