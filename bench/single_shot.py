@@ -111,6 +111,7 @@ def main(argv: list[str] | None = None) -> int:
 def closed_loop(vehicle: str, xml: Path | None = None) -> int:
     """Every cycle's answer of every scene's closed loop (as ``bench/commonroad.py`` drives it) against
     the vehicle's limits."""
+    from planner_tools.sim import problem_at
     from tests.regression.checks import limit_problems
 
     cycles: Counter[str] = Counter()
@@ -126,7 +127,8 @@ def closed_loop(vehicle: str, xml: Path | None = None) -> int:
             if step.trajectory is None:
                 continue
             cycles[step.status] += 1
-            problems = limit_problems(run.prepared.problem, step.trajectory)
+            # the cycle's own request (its ego: the measured steering angle the answer starts from)
+            problems = limit_problems(problem_at(run.prepared.problem, step.state), step.trajectory)
             broken += bool(problems)
             beyond[step.status] += bool(problems)
             kinds.update(" ".join(p.split(" ")[:2]) for p in problems)
