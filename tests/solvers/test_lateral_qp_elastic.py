@@ -78,6 +78,15 @@ def test_the_solver_hands_an_unfinished_qp_to_the_elastic_problem() -> None:
     np.testing.assert_allclose(result.x, x, atol=1e-9)
 
 
+def _pinched() -> LateralQPProblem:
+    """A 6 m corridor that jumps 4 m sideways within one knot: each side within reach of the start, no path
+    makes the jump (the second backend's proof, not the start's reach)."""
+    problem = _corridor(width=3.0)
+    lower, upper = problem.d_lower.copy(), problem.d_upper.copy()
+    lower[30], upper[31] = 2.0, -2.0
+    return replace(problem, d_lower=lower, d_upper=upper)
+
+
 def test_without_relaxation_an_unfinished_infeasible_qp_comes_back_with_the_proof_only() -> None:
     """``relax=False`` (a caller that takes converged answers only): the proof of infeasibility, no
     elastic path. Where the start's reach proves it, nothing is solved (the reference clipped to the
@@ -94,10 +103,7 @@ def test_without_relaxation_an_unfinished_infeasible_qp_comes_back_with_the_proo
         "clipped_reference",
     )
     assert result.d[0] == problem.d0 and np.all(np.abs(result.d[1:]) <= 0.3)
-    pinched = _corridor(width=3.0)
-    lower, upper = pinched.d_lower.copy(), pinched.d_upper.copy()
-    lower[30], upper[31] = 2.0, -2.0
-    pinched = replace(pinched, d_lower=lower, d_upper=upper)
+    pinched = _pinched()
     result = LateralQPSolver().solve(pinched, max_iter=3, relax=False)
     assert result.info.status is SolverStatus.MAX_ITERATIONS and result.infeasible
     extras = result.info.extras
@@ -113,10 +119,11 @@ def test_without_relaxation_an_unfinished_infeasible_qp_comes_back_with_the_proo
 
 def test_a_proof_relaxed_later_is_the_path_relaxed_at_once() -> None:
     """``relax=False, relax_later=True`` marks the proof (``infeasible``: the start's reach after OSQP ran
-    out, OSQP's own certificate) and :meth:`LateralQPSolver.relax` then gives exactly what ``relax=True``
-    gives at once: the same elastic path, status and extras, the unrelaxed result as ``first``; a result
-    without a proof is misuse."""
-    for problem, max_iter in ((_corridor(width=0.3, d0=2.0), 3), (_corridor(width=0.3, d0=2.0), 4000)):
+    out, the second backend's, OSQP's own certificate) and :meth:`LateralQPSolver.relax` then gives exactly
+    what ``relax=True`` gives at once: the same elastic path, status and extras, the unrelaxed result as
+    ``first``; a result without a proof is misuse."""
+    cases = ((_corridor(width=0.3, d0=2.0), 3), (_pinched(), 3), (_corridor(width=0.3, d0=2.0), 4000))
+    for problem, max_iter in cases:
         proof = LateralQPSolver().solve(problem, max_iter=max_iter, relax=False, relax_later=True)
         assert proof.infeasible and not proof.info.converged
         later = LateralQPSolver().relax(problem, proof)
