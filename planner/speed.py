@@ -397,8 +397,7 @@ def _braking_breaks(
     far = upper is not None and bool(np.any(v0 * t + 0.5 * a0 * t**2 > upper + slack))
     if not (fast or far):
         return False
-    sp = _speed_problem(path, problem, t.size - 1, float(t[1] - t[0]), jerk, np.zeros_like(path.sigma), 0.0)
-    stop = _analytic(ProfileKind.BRAKING, sp, braking_profile(sp))
+    stop = braking(path, problem, t.size - 1, float(t[1] - t[0]), jerk=jerk)
     over = bool(np.any(stop.v > np.interp(stop.s, path.sigma, limit) + slack))
     return over or (upper is not None and bool(np.any(stop.s > upper + slack)))
 
@@ -448,10 +447,12 @@ def braking(
     steps: int,
     dt: float,
     config: SpeedConfig = DEFAULT_CONFIG.speed,
+    jerk: float | None = None,
 ) -> Profile:
-    """Full braking within the emergency jerk along ``path`` (the fallback's speed profile). Analytic:
-    nothing is solved."""
-    sp = _speed_problem(path, problem, steps, dt, config.emergency_jerk, np.zeros_like(path.sigma), 0.0)
+    """Full braking within the emergency jerk (or ``jerk`` [m/s³]) along ``path`` (the fallback's speed
+    profile). Analytic: nothing is solved."""
+    jerk_max = config.emergency_jerk if jerk is None else jerk
+    sp = _speed_problem(path, problem, steps, dt, jerk_max, np.zeros_like(path.sigma), 0.0)
     return _analytic(ProfileKind.BRAKING, sp, braking_profile(sp))
 
 

@@ -305,7 +305,7 @@ class LateralQPSolver:
         unreachable = gap > self._feasibility_tol
         if unreachable and not (relax or relax_later):
             return self._unreachable(problem, l, u, gap, start)  # a caller that takes converged answers only
-        started = unreachable and (relax or relax_later) and self._start_elastic(problem, time_limit_s)
+        started = unreachable and self._start_elastic(problem, time_limit_s)  # relaxed now or later
         workspace, setup_ms = self._workspace(problem, q, l, u, fresh=not warm_start)
         solver = workspace.solver
         if workspace.max_iter != max_iter or workspace.time_limit_s != limit:
@@ -370,18 +370,17 @@ class LateralQPSolver:
         iterations = int(info.iter)
 
         def result(x: FloatArray, status: SolverStatus, message: str) -> LateralQPResult:
-            d, dd, ddd = x[:n].copy(), x[n : 2 * n].copy(), x[2 * n :].copy()
             info = SolveInfo(
                 status=status,
                 iterations=iterations,
                 solve_time_ms=(time.perf_counter() - start) * 1e3 - setup_ms,
-                objective=objective(problem, d, dd, ddd) if status.converged else None,
+                objective=objective(problem, x[:n], x[n : 2 * n], x[2 * n :]) if status.converged else None,
                 message=message,
                 max_violation=max_violation(A @ x, l, u),
                 setup_time_ms=setup_ms,
                 extras=extras,
             )
-            return LateralQPResult(info=info, d=d, dd=dd, ddd=ddd, x=x)
+            return LateralQPResult.of(x, info)
 
         # a converged answer that breaks a constraint by more than the tolerance (polishing picked a wrong
         # active set, or did not run) goes too: an interior-point solve is accurate where ADMM is not
@@ -455,7 +454,6 @@ class LateralQPSolver:
             workspace.last_x = workspace.last_y = None
         _, A = qp_matrices(*key)
         x = clipped_reference(problem)
-        n = problem.n
         info = SolveInfo(
             status=SolverStatus.INFEASIBLE,
             iterations=0,
@@ -475,9 +473,7 @@ class LateralQPSolver:
                 "returned": "clipped_reference",
             },
         )
-        return LateralQPResult(
-            info=info, d=x[:n].copy(), dd=x[n : 2 * n].copy(), ddd=x[2 * n :].copy(), x=x, infeasible=True
-        )
+        return LateralQPResult.of(x, info, infeasible=True)
 
     def _solve_elastic(self, problem: LateralQPProblem, time_limit_s: float | None) -> ConicQPResult:
         """``problem``'s elastic problem solved by the second backend within ``time_limit_s`` [s]."""
@@ -534,7 +530,6 @@ class LateralQPSolver:
         extras.update(
             backend=BACKEND, backend_status=str(elastic.info.extras["backend_status"]), returned="relaxed"
         )
-        n = problem.n
         info = replace(
             first.info,
             status=SolverStatus.RELAXED,
@@ -544,6 +539,4 @@ class LateralQPSolver:
             max_violation=max_violation(A @ x, lower, upper),
             extras=extras,
         )
-        return LateralQPResult(
-            info=info, d=x[:n].copy(), dd=x[n : 2 * n].copy(), ddd=x[2 * n :].copy(), x=x, first=first
-        )
+        return LateralQPResult.of(x, info, first=first)

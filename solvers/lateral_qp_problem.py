@@ -222,6 +222,13 @@ class LateralQPProblem:
             upper[2 * n :] = self.ddd_upper
         return lower, upper
 
+    def _pinned_bounds(self) -> tuple[FloatArray, FloatArray]:
+        """:meth:`_bounds` with knot 0 pinned to the initial state."""
+        lower, upper = self._bounds()
+        n = self.n
+        lower[[0, n, 2 * n]] = upper[[0, n, 2 * n]] = (self.d0, self.dd0, self.ddd0)
+        return lower, upper
+
     def jerk_bounds(self) -> tuple[FloatArray, FloatArray]:
         """Lower and upper bounds on ``d‴`` [1/m²] per interval (``∓jerk_max`` where not given)."""
         m1 = self.n - 1
@@ -255,6 +262,15 @@ class LateralQPResult:
     x: FloatArray
     first: LateralQPResult | None = None
     infeasible: bool = False
+
+    @classmethod
+    def of(
+        cls, x: FloatArray, info: SolveInfo, first: LateralQPResult | None = None, infeasible: bool = False
+    ) -> LateralQPResult:
+        """The result whose decision vector is ``x = [d, d′, d″]`` (``d``, ``dd``, ``ddd`` copied out)."""
+        n = x.shape[0] // 3
+        d, dd, ddd = x[:n].copy(), x[n : 2 * n].copy(), x[2 * n :].copy()
+        return cls(info=info, d=d, dd=dd, ddd=ddd, x=x, first=first, infeasible=infeasible)
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -337,8 +353,7 @@ def qp_vectors(problem: LateralQPProblem) -> tuple[FloatArray, FloatArray, Float
         pull = 2.0 * w.jerk / problem.ds * problem.jerk_ref
         q[2 * n : 3 * n - 1] += pull
         q[2 * n + 1 :] -= pull
-    box_l, box_u = problem._bounds()
-    box_l[[0, n, 2 * n]] = box_u[[0, n, 2 * n]] = (problem.d0, problem.dd0, problem.ddd0)
+    box_l, box_u = problem._pinned_bounds()
     jerk_lower, jerk_upper = problem.jerk_bounds()  # may be ∓inf
     m1 = n - 1
     l = np.concatenate([box_l, problem.ds * jerk_lower, np.zeros(2 * m1)])  # noqa: E741
@@ -389,7 +404,13 @@ def integrate_profile(problem: LateralQPProblem, ddd: FloatArray) -> FloatArray:
     ds = problem.ds
     jerk_lower, jerk_upper = problem.jerk_bounds()
     step = np.clip(np.diff(np.asarray(ddd, dtype=float)), ds * jerk_lower, ds * jerk_upper)
-    curv = problem.ddd0 + np.concatenate(([0.0], np.cumsum(step)))
+    return _integrated(problem, problem.ddd0 + np.concatenate(([0.0], np.cumsum(step))))
+
+
+def _integrated(problem: LateralQPProblem, curv: FloatArray) -> FloatArray:
+    """``x = [d, d′, d″]`` with d″ = ``curv`` [1/m] per knot, ``d′`` and ``d`` integrated from the initial
+    state by the QP's equality rows."""
+    ds = problem.ds
     slope = problem.dd0 + np.concatenate(([0.0], np.cumsum(0.5 * ds * (curv[:-1] + curv[1:]))))
     rise = ds * slope[:-1] + ds**2 / 3.0 * curv[:-1] + ds**2 / 6.0 * curv[1:]
     d = problem.d0 + np.concatenate(([0.0], np.cumsum(rise)))
@@ -415,18 +436,13 @@ def reach_gap(problem: LateralQPProblem) -> float:
     if not (np.all(np.isfinite(jerk_lower)) and np.all(np.isfinite(jerk_upper))):
         return 0.0
     n, ds = problem.n, problem.ds
-    box_l, box_u = problem._bounds()
-    box_l[[0, n, 2 * n]] = box_u[[0, n, 2 * n]] = (problem.d0, problem.dd0, problem.ddd0)
+    box_l, box_u = problem._pinned_bounds()
 
     def extreme(step: FloatArray, box: FloatArray, sign: float) -> FloatArray:
         # g_i − c_i = max(box_i − c_i, g_{i−1} − c_{i−1}), c the jerks accumulated; the upper path as the
         # lower one of the mirrored problem (sign −1: steps and box negated)
         c = np.concatenate(([0.0], np.cumsum(ds * step)))
-        curv = sign * (c + np.maximum.accumulate(box[2 * n :] - c))
-        slope = problem.dd0 + np.concatenate(([0.0], np.cumsum(0.5 * ds * (curv[:-1] + curv[1:]))))
-        rise = ds * slope[:-1] + ds**2 / 3.0 * curv[:-1] + ds**2 / 6.0 * curv[1:]
-        d = problem.d0 + np.concatenate(([0.0], np.cumsum(rise)))
-        return np.concatenate([d, slope, curv])
+        return _integrated(problem, sign * (c + np.maximum.accumulate(box[2 * n :] - c)))
 
     low = extreme(jerk_lower, box_l, 1.0)
     high = extreme(-jerk_upper, -box_u, -1.0)
