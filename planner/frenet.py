@@ -85,7 +85,9 @@ def nearest_sample(
     ref: ReferenceLine, points: FloatArray, *, tie_abs: float = TIE_ABS, tie_rel: float = TIE_REL
 ) -> NDArray[np.intp]:
     """Index of the nearest sample to each point, the biggest index among (near-)ties (Alg. 1, 1–3)."""
-    found = ref.tree.query(points, k=2, workers=-1 if points.shape[0] > 20_000 else 1)
+    # the three nearest: where the third is no tie, the two are all the ties there are
+    k = min(3, ref.size)
+    found = ref.tree.query(points, k=k, workers=-1 if points.shape[0] > 20_000 else 1)
     dist: FloatArray = np.asarray(found[0], dtype=float)
     idx: NDArray[np.intp] = np.asarray(found[1], dtype=np.intp)
     far = np.flatnonzero(~np.isfinite(dist[:, 1]))
@@ -97,24 +99,25 @@ def nearest_sample(
         measured = np.hypot(gap[..., 0], gap[..., 1])
         nearest = measured.min(axis=1, keepdims=True)
         ties = measured <= nearest * (1.0 + tie_rel) + tie_abs
-        idx[far, 0] = idx[far, 1] = np.max(np.where(ties, np.arange(ref.size), -1), axis=1)
-        dist[far, 0] = dist[far, 1] = nearest[:, 0]
+        idx[far] = np.max(np.where(ties, np.arange(ref.size), -1), axis=1)[:, None]
+        dist[far] = np.inf
+        dist[far, 0] = nearest[:, 0]
     limit = dist[:, 0] * (1.0 + tie_rel) + tie_abs
     tie = dist[:, 1] <= limit
     chosen = np.where(tie, np.maximum(idx[:, 0], idx[:, 1]), idx[:, 0])
-    # More samples may tie where the two are not adjacent (equidistant from two stretches of the
-    # reference) or near a centre of curvature (an arc's samples are all equidistant from its centre):
-    # there, ask for every sample within the limit. Two adjacent samples tie harmlessly elsewhere.
-    crowded = tie & ((np.abs(idx[:, 0] - idx[:, 1]) != 1) | (np.abs(ref.kappa[idx[:, 0]]) * dist[:, 0] > 0.5))
-    if ref.size > 2 and crowded.any():
-        # Look ahead of the later of the two over a window of samples (ties along one arc are
-        # contiguous); where the window's last sample still ties, ask the tree for all of them.
-        rows = np.flatnonzero(crowded)
-        ahead = np.minimum(chosen[rows, None] + np.arange(_CROWD), ref.size - 1)
-        gap = ref.points[ahead] - points[rows, None, :]
-        within = np.hypot(gap[..., 0], gap[..., 1]) <= limit[rows, None]
-        chosen[rows] = np.max(np.where(within, ahead, -1), axis=1)
-        full = rows[within[:, -1] & (ahead[:, -1] < ref.size - 1)]
+    if k == 3 and bool(np.any(dist[:, 2] <= limit)):
+        # More than two samples tie: along an arc seen from its centre, along a straight seen from far
+        # off (the relative tolerance), on two stretches that pass at the same distance. A window of
+        # samples either side of the later of the two is measured (such ties are mostly contiguous);
+        # where it does not hold as many as the tree counts, the tree lists them.
+        more = np.flatnonzero(dist[:, 2] <= limit)
+        count = np.asarray(ref.tree.query_ball_point(points[more], limit[more], return_length=True))
+        window = chosen[more, None] + np.arange(-_CROWD, _CROWD + 1)
+        valid = (window >= 0) & (window < ref.size)
+        gap = ref.points[np.clip(window, 0, ref.size - 1)] - points[more, None, :]
+        within = valid & (np.hypot(gap[..., 0], gap[..., 1]) <= limit[more, None])
+        chosen[more] = np.max(np.where(within, window, -1), axis=1)
+        full = more[within.sum(axis=1) != count]
         if full.size:
             balls = ref.tree.query_ball_point(points[full], limit[full])
             chosen[full] = [max(b) for b in balls]

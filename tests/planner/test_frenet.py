@@ -451,6 +451,70 @@ def test_tie_tolerance_of_the_biggest_index_rule(frac, shift, t):
     assert fp.nearest[0] == expected
 
 
+def _biggest_nearest(ref: ReferenceLine, pts: np.ndarray) -> np.ndarray:
+    """The biggest-index rule by brute force: the last sample within the tie limit of the nearest."""
+    dist = np.hypot(*(ref.points[None, :, :] - pts[:, None, :]).transpose(2, 0, 1))
+    limit = dist.min(axis=1, keepdims=True) * (1.0 + TIE_REL) + TIE_ABS
+    return np.max(np.where(dist <= limit, np.arange(ref.size), -1), axis=1)
+
+
+@functools.cache
+def twice_round_ref(span: float) -> ReferenceLine:
+    """A road that runs along a circle of radius 10 about the origin (angles ±``span``), leaves it,
+    and comes back along the opposite stretch of the same circle: two stretches, far apart in index,
+    equidistant from the origin."""
+    radius = 10.0
+
+    def arc(a0: float, a1: float) -> np.ndarray:
+        a = np.linspace(a0, a1, 50)
+        return radius * np.column_stack((np.cos(a), np.sin(a)))
+
+    def tangent(a: float) -> np.ndarray:
+        return np.array([-math.sin(a), math.cos(a)])
+
+    steps = np.arange(1.0, 30.0)[:, None]
+    first, second = arc(-span, span), arc(math.pi - span, math.pi + span)
+    away = first[-1] + steps * tangent(span)
+    back = second[0] - steps[::-1] * tangent(math.pi - span)
+    on = second[-1] + steps * tangent(math.pi + span)
+    return build_reference(np.vstack((first, away, back, second, on)))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    span=st.sampled_from([0.05, 0.2]),
+    scale=st.sampled_from([1e-7, 1e-5, 1e-3, 1e-2, 1.0]),
+    seed=st.integers(0, 2**16),
+)
+def test_ties_on_two_stretches_about_one_centre_go_to_the_later(span, scale, seed):
+    """Points near the centre both stretches circle: every sample of both within the tie limit ties
+    (more than the two a nearest-two query finds, and far apart in index): the biggest index wins."""
+    ref = twice_round_ref(span)
+    pts = np.random.default_rng(seed).normal(scale=scale, size=(200, 2))
+    np.testing.assert_array_equal(to_frenet(ref, pts).nearest, _biggest_nearest(ref, pts))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    name=st.sampled_from(ROAD_NAMES),
+    frac=unit,
+    reach=st.floats(0.0, 200.0),
+    seed=st.integers(0, 2**16),
+)
+def test_nearest_sample_is_the_biggest_index_among_ties(name, frac, reach, seed):
+    """Anywhere (on the road, inside its bends, far off, where a straight's neighbouring samples
+    fall within the relative tolerance of each other): the biggest index among the ties, as brute
+    force finds it."""
+    ref = road_ref(name)
+    rng = np.random.default_rng(seed)
+    centre = ref.points[int(frac * (ref.size - 1))]
+    pts = centre + rng.normal(scale=max(reach, 1e-9), size=(200, 2))
+    dist = np.hypot(*(ref.points[None, :, :] - pts[:, None, :]).transpose(2, 0, 1))
+    limit = dist.min(axis=1, keepdims=True) * (1.0 + TIE_REL) + TIE_ABS
+    clear = np.all(np.abs(dist - limit) > 1e-9 * (1.0 + limit), axis=1)  # none at the limit's rounding
+    np.testing.assert_array_equal(to_frenet(ref, pts[clear]).nearest, _biggest_nearest(ref, pts[clear]))
+
+
 def test_tie_rule_examples():
     ref = road_ref("straight")
     i = 40
