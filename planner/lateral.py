@@ -327,7 +327,21 @@ class _Paths:
 
     def in_lane(self, s: FloatArray, qp: LateralQPResult, surface: Lane) -> bool:
         """Whether the footprint along the QP's path stays on ``surface`` at its knots ``s`` [m] (the
-        bounds are linearised at the candidate's heading; the path's own may differ)."""
+        bounds are linearised at the candidate's heading; the path's own may differ).
+
+        The pose whose planned point lies farthest outside ``surface`` by its own offset is checked
+        first, with the start (whose overshoot the others are allowed): where it is out, so is the
+        path, and the others need not be mapped. Those are the paths that leave the lane by metres,
+        an unconverged iterate integrated from the start tens of metres off the road, say, whose
+        outline points are the costliest to map (far from the reference many samples tie)."""
+        if (id(qp), id(s), id(surface)) not in self._leaves:
+            left, right = surface.widths(self.ref, s)
+            worst = int(np.argmax(np.maximum(qp.d - left, -right - qp.d)))
+            path = self.path(s, qp)
+            poses = np.unique([0, worst])
+            x, y = body_centre(path.x[poses], path.y[poses], path.heading[poses], self.problem.vehicle)
+            if bool(leaves_lane(self.ref, self.problem, x, y, path.heading[poses], surface)[-1]):
+                return False
         return not bool(np.any(self.leaves(s, qp, surface)))
 
 

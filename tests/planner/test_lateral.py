@@ -583,3 +583,58 @@ def test_a_start_that_cannot_reach_its_bounds_is_proven_infeasible_without_the_s
     assert (by_clarabel.status, by_clarabel.message) == (proven.status, proven.message)
     for name in ("t", "x", "y", "heading", "curvature", "v", "a", "s", "d"):
         np.testing.assert_array_equal(getattr(by_clarabel.trajectory, name), getattr(proven.trajectory, name))
+
+
+@pytest.mark.parametrize("wheelbase", [None, 2.7])
+def test_the_lane_check_of_a_path_far_off_the_road_maps_two_poses(
+    monkeypatch: pytest.MonkeyPatch, wheelbase: float | None
+) -> None:
+    """A path whose planned point runs tens of metres off the lane (an unconverged QP's iterate integrated
+    from the start) is out where it lies farthest out: the lane check maps that pose and the start, not the
+    whole path; for a path in the lane, one just out and one far out it answers as the full check does."""
+    import planner.validation as validation
+    from planner.lateral import _Paths
+    from solvers.lateral_qp_problem import LateralQPResult
+    from solvers.result import SolveInfo
+
+    base = demo_problem()
+    car = {} if wheelbase is None else {"wheelbase": wheelbase, "rear_axle_offset": 1.35}
+    problem = replace(
+        base,
+        reference_line=straight(150.0),
+        lane=Lane(left_width=1.75, right_width=1.75),
+        obstacles=(),
+        ego=Ego(x=5.0, y=0.0, heading=0.0, speed=10.0),
+        vehicle=replace(base.vehicle, length=4.5, width=1.8, **car),
+    )
+    ref = build_reference(problem.reference_line)
+    s = np.linspace(5.0, 65.0, 121)
+    info = SolveInfo(
+        status=SolverStatus.MAX_ITERATIONS, iterations=200, solve_time_ms=0.0, objective=None, message=""
+    )
+
+    def answer(d: np.ndarray) -> LateralQPResult:
+        dd = np.gradient(d, s)
+        return LateralQPResult.of(np.concatenate([d, dd, np.gradient(dd, s)]), info)
+
+    ahead = s - s[0]
+    cases = {
+        "in the lane": (answer(0.3 * np.sin(ahead / 10.0)), True),
+        "just out": (answer(np.minimum(ahead / 20.0, 1.2)), False),
+        "far off": (answer(0.025 * ahead**2), False),
+    }
+    mapped: list[int] = []
+    to_frenet = validation.to_frenet
+
+    def counted(ref_: object, points: np.ndarray, **kwargs: object) -> object:
+        mapped.append(len(points))
+        return to_frenet(ref_, points, **kwargs)
+
+    monkeypatch.setattr(validation, "to_frenet", counted)
+    for name, (qp, inside) in cases.items():
+        mapped.clear()
+        assert _Paths(ref, problem).in_lane(s, qp, problem.lane) is inside, name
+        if name == "far off":
+            assert sum(mapped) == 2 * 10  # the start's outline and the farthest pose's
+        full = _Paths(ref, problem).leaves(s, qp, problem.lane)
+        assert (not full.any()) is inside, name
