@@ -547,6 +547,19 @@ def test_past_its_budget_the_lateral_stage_skips_the_solves_that_only_improve_it
     assert free.status == spent.status == "stopped"
 
 
+def _on_a_straight(ego: Ego, **vehicle: float) -> PlanningProblem:
+    """The demo's vehicle (with ``vehicle``'s fields changed) on a straight 3.5 m lane, no obstacles."""
+    base = demo_problem()
+    return replace(
+        base,
+        reference_line=straight(150.0),
+        lane=Lane(left_width=1.75, right_width=1.75),
+        obstacles=(),
+        ego=ego,
+        vehicle=replace(base.vehicle, **vehicle),
+    )
+
+
 def test_a_start_that_cannot_reach_its_bounds_is_proven_infeasible_without_the_second_backend(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -555,14 +568,7 @@ def test_a_start_that_cannot_reach_its_bounds_is_proven_infeasible_without_the_s
     backend, and the answer is the one the second backend's proof gave."""
     import solvers.lateral_qp as lateral_qp
 
-    base = demo_problem()
-    problem = replace(
-        base,
-        reference_line=straight(150.0),
-        lane=Lane(left_width=1.75, right_width=1.75),
-        obstacles=(),
-        ego=Ego(x=5.0, y=2.5, heading=0.0, speed=10.0),
-    )
+    problem = _on_a_straight(Ego(x=5.0, y=2.5, heading=0.0, speed=10.0))
     solves: list[str] = []
     solve_conic_qp = lateral_qp.solve_conic_qp
 
@@ -597,16 +603,8 @@ def test_the_lane_check_of_a_path_far_off_the_road_maps_two_poses(
     from solvers.lateral_qp_problem import LateralQPResult
     from solvers.result import SolveInfo
 
-    base = demo_problem()
     car = {} if wheelbase is None else {"wheelbase": wheelbase, "rear_axle_offset": 1.35}
-    problem = replace(
-        base,
-        reference_line=straight(150.0),
-        lane=Lane(left_width=1.75, right_width=1.75),
-        obstacles=(),
-        ego=Ego(x=5.0, y=0.0, heading=0.0, speed=10.0),
-        vehicle=replace(base.vehicle, length=4.5, width=1.8, **car),
-    )
+    problem = _on_a_straight(Ego(x=5.0, y=0.0, heading=0.0, speed=10.0), length=4.5, width=1.8, **car)
     ref = build_reference(problem.reference_line)
     s = np.linspace(5.0, 65.0, 121)
     info = SolveInfo(
