@@ -319,11 +319,18 @@ class _Paths:
         key = (id(qp), id(s), id(surface))
         found = self._leaves.get(key)
         if found is None:
-            path = self.path(s, qp)
-            x, y = body_centre(path.x, path.y, path.heading, self.problem.vehicle)
-            found = (qp, s, surface, leaves_lane(self.ref, self.problem, x, y, path.heading, surface))
+            found = (qp, s, surface, self._leaves_at(s, qp, surface, slice(None)))
             self._leaves[key] = found
         return found[3]
+
+    def _leaves_at(
+        self, s: FloatArray, qp: LateralQPResult, surface: Lane, poses: slice | NDArray[np.intp]
+    ) -> NDArray[np.bool_]:
+        """:meth:`leaves` at the knots ``poses`` only (the first among them: leaves_lane's start)."""
+        path = self.path(s, qp)
+        heading = path.heading[poses]
+        x, y = body_centre(path.x[poses], path.y[poses], heading, self.problem.vehicle)
+        return leaves_lane(self.ref, self.problem, x, y, heading, surface)
 
     def in_lane(self, s: FloatArray, qp: LateralQPResult, surface: Lane) -> bool:
         """Whether the footprint along the QP's path stays on ``surface`` at its knots ``s`` [m] (the
@@ -337,10 +344,7 @@ class _Paths:
         if (id(qp), id(s), id(surface)) not in self._leaves:
             left, right = surface.widths(self.ref, s)
             worst = int(np.argmax(np.maximum(qp.d - left, -right - qp.d)))
-            path = self.path(s, qp)
-            poses = np.unique([0, worst])
-            x, y = body_centre(path.x[poses], path.y[poses], path.heading[poses], self.problem.vehicle)
-            if bool(leaves_lane(self.ref, self.problem, x, y, path.heading[poses], surface)[-1]):
+            if bool(self._leaves_at(s, qp, surface, np.unique([0, worst]))[-1]):
                 return False
         return not bool(np.any(self.leaves(s, qp, surface)))
 

@@ -451,10 +451,15 @@ def test_tie_tolerance_of_the_biggest_index_rule(frac, shift, t):
     assert fp.nearest[0] == expected
 
 
+def _tie_distances(ref: ReferenceLine, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every point's distance to every sample, shape (N, M), and its tie limit, shape (N, 1)."""
+    dist = np.hypot(*(ref.points[None, :, :] - pts[:, None, :]).transpose(2, 0, 1))
+    return dist, dist.min(axis=1, keepdims=True) * (1.0 + TIE_REL) + TIE_ABS
+
+
 def _biggest_nearest(ref: ReferenceLine, pts: np.ndarray) -> np.ndarray:
     """The biggest-index rule by brute force: the last sample within the tie limit of the nearest."""
-    dist = np.hypot(*(ref.points[None, :, :] - pts[:, None, :]).transpose(2, 0, 1))
-    limit = dist.min(axis=1, keepdims=True) * (1.0 + TIE_REL) + TIE_ABS
+    dist, limit = _tie_distances(ref, pts)
     return np.max(np.where(dist <= limit, np.arange(ref.size), -1), axis=1)
 
 
@@ -509,8 +514,7 @@ def test_nearest_sample_is_the_biggest_index_among_ties(name, frac, reach, seed)
     rng = np.random.default_rng(seed)
     centre = ref.points[int(frac * (ref.size - 1))]
     pts = centre + rng.normal(scale=max(reach, 1e-9), size=(200, 2))
-    dist = np.hypot(*(ref.points[None, :, :] - pts[:, None, :]).transpose(2, 0, 1))
-    limit = dist.min(axis=1, keepdims=True) * (1.0 + TIE_REL) + TIE_ABS
+    dist, limit = _tie_distances(ref, pts)
     clear = np.all(np.abs(dist - limit) > 1e-9 * (1.0 + limit), axis=1)  # none at the limit's rounding
     np.testing.assert_array_equal(to_frenet(ref, pts[clear]).nearest, _biggest_nearest(ref, pts[clear]))
 
