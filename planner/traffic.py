@@ -87,12 +87,40 @@ def oncoming(
     the latest it leaves the space. So an oncoming vehicle conflicts where the two would meet in it, one
     ahead and faster does not.
     """
-    movers = [ob for ob in moving_obstacles(problem) if ob.id not in passing]
+    v = problem.vehicle
+    s_lo = corridor.start - corridor.ramp_in - v.length
+    s_hi = corridor.end + corridor.ramp_out + v.length
+    span = np.linspace(s_lo, s_hi, 64)
+    lane_left, lane_right = problem.lane.widths(ref, span)
+    road_left, road_right = corridor.road.widths(ref, span)
+    if corridor.side == "left":
+        across = (float(np.min(lane_left)), min(float(np.max(road_left)), band))
+    else:
+        across = (max(-float(np.max(road_right)), band), -float(np.min(lane_right)))
+    reach = float(max(np.max(road_left), np.max(road_right)))
+    return first_inside(ref, problem, start, (s_lo, s_hi), across, reach, passing, config)
+
+
+def first_inside(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    along: tuple[float, float],
+    across: tuple[float, float],
+    reach: float,
+    excluded: frozenset[str],
+    config: PlannerConfig,
+) -> tuple[str, float] | None:
+    """The first moving obstacle (other than ``excluded``) whose Frenet box reaches into the space
+    ``along`` × ``across`` (arc length [m] × offset [m], bounds excluded) where and while the vehicle may
+    be there (its footprint with ``obstacle_margin`` and ``stop_gap`` from its late position at
+    ``t − time_margin`` to its earliest at ``t + time_margin``, :func:`ego_times`), and from when [s];
+    None when it stays clear. Movers farther than ``reach`` [m] from the reference are not looked at."""
+    movers = [ob for ob in moving_obstacles(problem) if ob.id not in excluded]
     if not movers:
         return None
     v, cfg = problem.vehicle, config.decision
-    s_lo = corridor.start - corridor.ramp_in - v.length
-    s_hi = corridor.end + corridor.ramp_out + v.length
+    s_lo, s_hi = along
     grid = np.linspace(start.s, max(s_hi, start.s + 1.0), 256)
     early, late = ego_times(ref, problem, start, grid, config)
     # predictions are for the horizon: beyond twice it, a late estimate says nothing
@@ -102,20 +130,12 @@ def oncoming(
     ahead = np.interp(t + cfg.time_margin, early, grid) + v.front_extent + gap
     behind = np.interp(t - cfg.time_margin, late, grid, left=start.s) - v.rear_extent - gap
     occupied_lo, occupied_hi = np.maximum(behind, s_lo), np.minimum(ahead, s_hi)
-    span = np.linspace(s_lo, s_hi, 64)
-    lane_left, lane_right = problem.lane.widths(ref, span)
-    road_left, road_right = corridor.road.widths(ref, span)
-    reach = float(max(np.max(road_left), np.max(road_right)))
     near, states = _near_movers(ref, movers, t, s_lo, s_hi, reach)
     if not near:
         return None
     s_min, s_max, d_min, d_max = frenet_extents(ref, near, states)  # (K, T)
-    along = (s_max >= occupied_lo) & (s_min <= occupied_hi) & (occupied_lo <= occupied_hi)
-    if corridor.side == "left":
-        across = (d_max > float(np.min(lane_left))) & (d_min < min(float(np.max(road_left)), band))
-    else:
-        across = (d_min < -float(np.min(lane_right))) & (d_max > max(-float(np.max(road_right)), band))
-    inside = along & across
+    inside = (s_max >= occupied_lo) & (s_min <= occupied_hi) & (occupied_lo <= occupied_hi)
+    inside &= (d_max > across[0]) & (d_min < across[1])
     if not inside.any():
         return None
     first = np.where(inside.any(axis=1), np.argmax(inside, axis=1), inside.shape[1])
