@@ -157,9 +157,9 @@ def slow_vehicle(
     ref: ReferenceLine, problem: PlanningProblem, start: EgoFrenet, at: FloatArray, config: PlannerConfig
 ) -> SlowVehicle | None:
     """The nearest moving obstacle ahead within the path's knots ``at`` [m] that leaves no room to pass
-    it in the lane and drives much slower than the target speed (along the reference, over the horizon),
-    and the box it sweeps until the vehicle, at its earliest (:func:`ego_times`), is ``pass_headway`` of
-    its speed (at least ``stop_gap``) ahead of it."""
+    it in the lane and drives much slower than the target speed (along the reference, over the horizon or
+    its prediction if that ends sooner), and the box it sweeps until the vehicle, at its earliest
+    (:func:`ego_times`), is ``pass_headway`` of its speed (at least ``stop_gap``) ahead of it."""
     movers = moving_obstacles(problem)
     if not movers:
         return None
@@ -185,7 +185,13 @@ def slow_vehicle(
     t = np.linspace(0.0, horizon, max(2, int(np.ceil(horizon / cfg.track_step)) + 1))
     s_min, s_max, d_min, d_max = frenet_extents(ref, near, [prediction_at(ob, t) for ob in near])
     mid = 0.5 * (s_min + s_max)
-    speed = (mid[:, -1] - mid[:, 0]) / horizon
+    # over the prediction's own span: one that ends within the horizon is held there, not stopping
+    span = np.clip([ob.prediction[-1, 0] for ob in near], t[1], horizon)
+    at_end = span / t[1]  # where on the grid it ends (t is uniform from 0)
+    lo = np.minimum(at_end.astype(int), t.shape[0] - 2)
+    rows = np.arange(len(near))
+    ends = mid[rows, lo] + (at_end - lo) * (mid[rows, lo + 1] - mid[rows, lo])
+    speed = (ends - mid[:, 0]) / span
     target = target_speed(problem)
     slow = (speed < cfg.slow_share * target) & (speed < target - cfg.slow_margin)
     gap = np.maximum(cfg.pass_headway * np.maximum(speed, 0.0), config.stop_gap)

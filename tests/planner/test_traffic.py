@@ -65,3 +65,17 @@ def test_a_slow_vehicle_in_the_lane_sweeps_a_box_until_the_vehicle_is_past_it() 
             )
             is None
         )
+
+
+def test_a_vehicle_whose_prediction_ends_within_the_horizon_is_as_fast_as_it_drives() -> None:
+    # predicted over 2 s of an 8 s horizon: held where it ends, it would average 3 m/s over the horizon
+    car = driving("car", 40.0, 0.0, 12.0, length=4.5, width=2.5)
+    short = replace(car, prediction=car.prediction[car.prediction[:, 0] <= 2.0])
+    problem = two_lane_problem(ROAD, speed=12.0, obstacles=(short,))
+    start = start_state(REF, problem)
+    at = np.linspace(start.s, start.s + 150.0, 241)
+    assert slow_vehicle(REF, problem, start, at, DEFAULT_CONFIG) is None
+    crawling = replace(car, prediction=driving("car", 40.0, 0.0, 1.0).prediction[:5])  # 1 m/s for 2 s
+    slow = slow_vehicle(REF, replace(problem, obstacles=(crawling,)), start, at, DEFAULT_CONFIG)
+    assert slow is not None and slow.obstacle_id == "car"
+
