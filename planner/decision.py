@@ -28,6 +28,15 @@ QP, speed profile) consume them. It runs after the plan in the lane (candidates,
 
 An ego already outside its lane keeps borrowing until it is back: it never waits in the road. A borrow
 the lateral stage finds no path for is dropped for the lane plan (:func:`no_path`).
+
+A much slower vehicle going the same way that leaves room beside it *in* the lane (a wide lane; several
+lanes of one direction a converter merged) is passed within it (``passing_in_lane``,
+:func:`_pass_within`) when the lane plan's path runs into it, the lane stays open beside its swept box on
+one side and no other moving obstacle is in the vehicle's width beside it there where and while the
+vehicle may be (:func:`planner.traffic.first_inside`, the borrow's check of the road it would take); its
+roomier side first. The lane stays kept, the corridor is the lane itself, the swept box is bounded as a static
+obstacle's on that side, and the speed profile does not follow it. Without this the lateral stage, which
+bounds static obstacles only, followed it, to a standstill behind one that crawls.
 """
 
 from __future__ import annotations
@@ -40,8 +49,8 @@ import numpy as np
 from numpy.typing import NDArray
 from shapely.geometry.base import BaseGeometry
 
-from planner.bounds import LateralBounds, lateral_bounds, roomier_left
-from planner.collision import FrenetBoxes, frenet_boxes, outline_points
+from planner.bounds import KnotGeometry, LateralBounds, knot_geometry, lateral_bounds, roomier_left
+from planner.collision import FrenetBoxes, box_hits, footprint_extent, frenet_boxes, outline_points
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.ego import EgoFrenet
 from planner.frenet import to_frenet
@@ -49,7 +58,7 @@ from planner.lane import Corridor, Side, corridor_width, lane_bounds
 from planner.lateral import LateralPlan, knots
 from planner.problem import Lane, PlanningProblem, Road, target_speed
 from planner.reference import FloatArray, ReferenceLine
-from planner.traffic import oncoming, slow_vehicle
+from planner.traffic import first_inside, oncoming, slow_vehicle
 
 
 class LaneChoice(StrEnum):
@@ -80,6 +89,8 @@ class ReasonKind(StrEnum):
     LANE_FREE = "lane_free"
     #: borrow: to get past what blocks the lane
     PASSING = "passing"
+    #: keep: a much slower vehicle that leaves room beside it in the lane is passed within the lane
+    PASSING_IN_LANE = "passing_in_lane"
     #: borrow: the vehicle is outside its lane and comes back
     RETURNING = "returning"
     #: keep: a moving obstacle would be in the borrowed space while the vehicle is: wait
@@ -135,6 +146,8 @@ class Reason:
             return f"{head}; {self.blocked}" if self.block else head
         if kind is ReasonKind.PASSING:
             tail = f"passing through the road on {side}"
+        elif kind is ReasonKind.PASSING_IN_LANE:
+            tail = f"passing it within the lane on {side}"
         elif kind is ReasonKind.ONCOMING:
             when = "" if self.t is None else f" from t = {self.t:.1f} s"
             tail = f"obstacle {self.oncoming_id} would be in the road beyond the lane on {side}{when}"
@@ -157,10 +170,12 @@ class Decision:
     Attributes:
         lane: keep, or borrow the road on one side.
         reason: why.
-        corridor: what a borrow drives in (the lane widened to the road), else None.
-        boxes: a borrow's static obstacles over the whole road, with the swept boxes of the vehicles it
-            overtakes, else None (the lane plan's stand).
-        passing: ids of the moving obstacles a borrow overtakes: the speed profile does not follow them.
+        corridor: what a borrow drives in (the lane widened to the road), the lane itself for a pass
+            within it, else None.
+        boxes: a borrow's static obstacles over the whole road, or a pass's in the lane, with the swept
+            boxes of the vehicles it overtakes, else None (the lane plan's stand).
+        passing: ids of the moving obstacles a borrow or a pass within the lane overtakes: the speed
+            profile does not follow them.
         wait_at: where a kept lane stops, before a block [m] (a swing-out's length before it), or None.
         urgent: whether a borrow's block is closer than the vehicle stops braking at half its
             deceleration: the path may then bend as sharply as full braking allows.
@@ -170,7 +185,7 @@ class Decision:
 
     lane: LaneChoice
     reason: Reason
-    corridor: Corridor | None = None
+    corridor: Lane | None = None
     boxes: FrenetBoxes | None = None
     passing: frozenset[str] = field(default_factory=frozenset)
     wait_at: float | None = None
@@ -201,14 +216,16 @@ def decide(
     candidate ends at ``s_end`` [m]; ``static`` are the static obstacles' outlines and ``lane_boxes``
     their boxes as the lane plan saw them."""
     road = problem.road
-    if road is None and not lane_plan.stops:
-        return KEEP_LANE
     at = knots(ref, start, s_end, config.lateral)
+    out_on = None if road is None else _outside_lane(ref, problem, road, config)
+    if not lane_plan.stops and out_on is None:
+        within = _pass_within(ref, problem, start, lane_plan, lane_boxes, at, config)
+        if within is not None:
+            return within
     if road is None:
-        if lane_plan.blocked is None:
+        if not lane_plan.stops or lane_plan.blocked is None:
             return KEEP_LANE
         return _keep(ReasonKind.NO_ROAD, _what_blocks(ref, problem, at, lane_plan.blocked, lane_boxes))
-    out_on = _outside_lane(ref, problem, road, config)
     stops = lane_plan.stops and lane_plan.blocked is not None
     slow = None if stops else slow_vehicle(ref, problem, start, at, config)
     if not stops and out_on is None and slow is None:
@@ -272,8 +289,73 @@ def decide(
     return Decision(choice, reason, corridor, boxes, passing, urgent=bool(urgent), sides=sides)
 
 
+def _pass_within(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    lane_plan: LateralPlan,
+    lane_boxes: FrenetBoxes,
+    at: FloatArray,
+    config: PlannerConfig,
+) -> Decision | None:
+    """Pass a much slower vehicle going the same way that leaves room beside it within the lane (a wide
+    lane, a lane of several the converter merged): its swept box until the vehicle is past it bounded as a
+    static obstacle's, where the lane plan's path meets it, on a side (the roomier first) where the lane
+    stays open beside it over the whole sweep and no other moving obstacle is in the vehicle's width
+    (with ``lateral_margin`` either side) beside the box, a vehicle length before and after it, where and
+    while the vehicle may be there; None otherwise (the speed profile follows it)."""
+    path = lane_plan.path
+    if path is None:
+        return None
+    margin = problem.options.lateral_margin
+    reach = 0.5 * problem.vehicle.width + margin
+    band = (float(np.min(path.d)) - reach, float(np.max(path.d)) + reach)
+    slow = slow_vehicle(ref, problem, start, at, config, in_lane=band)
+    if slow is None or slow.swept is None:
+        return None
+    one = np.clip(1.0 - ref.kappa_at(path.s) * path.d, config.lateral.min_stretch, None)
+    heading = np.arctan(np.gradient(path.d, path.s) / one) if path.s.shape[0] > 1 else np.zeros(1)
+    if not box_hits(slow.swept, path.s, path.d, footprint_extent(heading, problem.vehicle, margin)).any():
+        return None  # the lane plan passes it already
+    boxes = _merged(lane_boxes, slow.swept)
+    left_of = _roomier(ref, problem, problem.lane, at, boxes)
+    swept, v, passing = slow.swept, problem.vehicle, frozenset(slow.swept.ids)
+    need = v.width + 2.0 * margin
+    along = (float(swept.s_min[0]) - v.length, float(swept.s_max[0]) + v.length)
+    lane_left, lane_right = problem.lane.widths(ref, at)
+    reach = float(max(np.max(lane_left), np.max(lane_right)))
+    # the lane is open beside the box where the footprint overlaps it along the reference (elsewhere the
+    # bounds are the lane plan's, which does not stop); the geometry the same for both sides
+    beside = at[
+        (at + v.front_extent + margin >= swept.s_min[0]) & (at - v.rear_extent - margin <= swept.s_max[0])
+    ]
+    if not beside.size:
+        return None
+    geometry: KnotGeometry | None = None
+    for left in (bool(left_of[-1]), not left_of[-1]):  # its roomier side first
+        # no other traffic beside it, in the vehicle's width, where and while the vehicle may be there
+        edge = float(swept.d_max[0]) if left else float(swept.d_min[0]) - need
+        if first_inside(ref, problem, start, along, (edge, edge + need), reach, passing, config) is not None:
+            continue
+        left_of[-1] = left
+        if geometry is None:
+            geometry = knot_geometry(ref, problem.lane, beside, v)
+        bounds = _bounds(ref, problem, problem.lane, beside, boxes, config, left_of, geometry)
+        if _blocked(ref, problem, bounds, config).any():
+            continue
+        side: Side = "left" if left else "right"
+        reason = Reason(
+            ReasonKind.PASSING_IN_LANE, BlockKind.SLOW_VEHICLE, slow.obstacle_id, slow.s, side=side
+        )
+        return Decision(LaneChoice.KEEP, reason, problem.lane, boxes, passing, sides={slow.obstacle_id: left})
+    return None
+
+
 def no_path(decision: Decision) -> Decision:
-    """Keep the lane instead of a borrow the lateral stage found no path for (:data:`ReasonKind.NO_PATH`)."""
+    """Keep the lane instead of a borrow the lateral stage found no path for (:data:`ReasonKind.NO_PATH`);
+    instead of a pass within the lane, the lane plan as if nothing blocked it (it follows the vehicle)."""
+    if decision.reason.kind is ReasonKind.PASSING_IN_LANE:
+        return KEEP_LANE
     return _keep(ReasonKind.NO_PATH, decision.reason)
 
 
@@ -296,14 +378,24 @@ def _bounds(
     boxes: FrenetBoxes,
     config: PlannerConfig,
     left_of: NDArray[np.bool_] | None = None,
+    geometry: KnotGeometry | None = None,
 ) -> LateralBounds:
     """The lateral bounds in ``lane`` at knots ``at`` [m] with no margin to its edges, every obstacle passed
-    on its roomier side unless ``left_of`` says."""
+    on its roomier side unless ``left_of`` says (``geometry``: :func:`planner.bounds.knot_geometry` of
+    these knots and lane, where the caller has it)."""
     if left_of is None:
         left_of = _roomier(ref, problem, lane, at, boxes)
     margin = problem.options.lateral_margin
     return lateral_bounds(
-        ref, lane, at, problem.vehicle, margin=margin, boxes=boxes, left_of=left_of, lane_margin=0.0
+        ref,
+        lane,
+        at,
+        problem.vehicle,
+        margin=margin,
+        boxes=boxes,
+        left_of=left_of,
+        lane_margin=0.0,
+        geometry=geometry,
     )
 
 

@@ -154,12 +154,19 @@ class SlowVehicle:
 
 
 def slow_vehicle(
-    ref: ReferenceLine, problem: PlanningProblem, start: EgoFrenet, at: FloatArray, config: PlannerConfig
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    start: EgoFrenet,
+    at: FloatArray,
+    config: PlannerConfig,
+    in_lane: tuple[float, float] | None = None,
 ) -> SlowVehicle | None:
     """The nearest moving obstacle ahead within the path's knots ``at`` [m] that leaves no room to pass
-    it in the lane and drives much slower than the target speed (along the reference, over the horizon or
-    its prediction if that ends sooner), and the box it sweeps until the vehicle, at its earliest
-    (:func:`ego_times`), is ``pass_headway`` of its speed (at least ``stop_gap``) ahead of it."""
+    it in the lane (``in_lane``: that leaves room, and whose box now reaches into this band of offsets
+    ``(d_low, d_high)`` [m], the path's, and that goes the same way) and drives much slower than the
+    target speed (along the reference, over the horizon or its prediction if that ends sooner), and the
+    box it sweeps until the vehicle, at its earliest (:func:`ego_times`), is ``pass_headway`` of its speed
+    (at least ``stop_gap``) ahead of it."""
     movers = moving_obstacles(problem)
     if not movers:
         return None
@@ -177,7 +184,11 @@ def slow_vehicle(
     need = v.width + 2.0 * problem.options.lateral_margin
     no_room = np.maximum(left0 - d_max[:, 0], d_min[:, 0] + right0) < need
     ahead = (s_max[:, 0] + config.stop_gap >= start.s - v.rear_extent) & (s_min[:, 0] <= float(at[-1]))
-    near = [near[k] for k in np.flatnonzero(no_room & ahead)]
+    if in_lane is None:
+        kept = no_room & ahead
+    else:
+        kept = ~no_room & ahead & (d_max[:, 0] >= in_lane[0]) & (d_min[:, 0] <= in_lane[1])
+    near = [near[k] for k in np.flatnonzero(kept)]
     if not near:
         return None
     # then their tracks over the horizon
@@ -194,6 +205,8 @@ def slow_vehicle(
     speed = (ends - mid[:, 0]) / span
     target = target_speed(problem)
     slow = (speed < cfg.slow_share * target) & (speed < target - cfg.slow_margin)
+    if in_lane is not None:  # within the lane, only a vehicle going the same way is overtaken
+        slow &= speed >= 0.0
     gap = np.maximum(cfg.pass_headway * np.maximum(speed, 0.0), config.stop_gap)
     not_passed = s_max[:, 0] + gap >= start.s - v.rear_extent
     chosen = np.flatnonzero(slow & not_passed)

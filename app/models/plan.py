@@ -189,7 +189,9 @@ class DecisionReason(ResponseModel):
 
     kind: ReasonKind = Field(
         description="`lane_free`: nothing blocks the lane (kept). `passing`: the lane is blocked (`block`): "
-        "borrowing the road on `side` to get past. `returning`: the vehicle is outside its lane, in the "
+        "borrowing the road on `side` to get past. `passing_in_lane`: a much slower vehicle going the same "
+        "way (`obstacle_id`, `block` `slow_vehicle`) leaves room beside it in the lane: passed within the "
+        "lane on `side` (kept). `returning`: the vehicle is outside its lane, in the "
         "road on `side`, and comes back. Kept although the lane is blocked: `oncoming` (a moving obstacle, "
         "`oncoming_id`, would be in the borrowed road from `t` while the vehicle is: it waits before the "
         "block and goes once it is clear), `road_blocked` (the road leaves no room past the block either), "
@@ -202,8 +204,9 @@ class DecisionReason(ResponseModel):
     block: BlockKind | SkipJsonSchema[None] = Field(
         None,
         description="What blocks the lane: `obstacle` (a static one, `obstacle_id`), `slow_vehicle` (a "
-        "moving one ahead, `obstacle_id`, too wide to pass in the lane and much slower than the target "
-        "speed), `bend` (tighter than the vehicle can take in the lane), `narrow` (the lane is narrower "
+        "moving one ahead, `obstacle_id`, much slower than the target speed and too wide to pass in the "
+        "lane; for `passing_in_lane`, one that leaves room to), `bend` (tighter than the vehicle can take "
+        "in the lane), `narrow` (the lane is narrower "
         "than the vehicle).",
     )
     obstacle_id: str | SkipJsonSchema[None] = Field(None, description="The obstacle that blocks the lane.")
@@ -217,7 +220,9 @@ class DecisionReason(ResponseModel):
         None, description="`oncoming`: the moving obstacle in the borrowed road."
     )
     side: Literal["left", "right"] | SkipJsonSchema[None] = Field(
-        None, description="The side of the road borrowed (or that would be)."
+        None,
+        description="The side of the road borrowed (or that would be); for `passing_in_lane`, the side of "
+        "the slow vehicle it passes on.",
     )
 
 

@@ -276,3 +276,78 @@ def test_an_ego_whose_side_is_over_the_lane_on_the_inside_of_a_bend_is_outside_i
         road=Road(4.0, HALF_LANE),
     )
     assert _outside_lane(ref, problem, Road(4.0, HALF_LANE), DEFAULT_CONFIG) == "left"
+
+
+def crawler(
+    half_width: float, vehicle: Vehicle | None = None, *, speed: float = 0.1, others: tuple[object, ...] = ()
+) -> PlanningProblem:
+    """A car crawling at 0.1 m/s (or ``speed`` [m/s]) 25 m ahead on the reference line of a lane
+    ``2·half_width`` wide (three lanes the converter merged, say), no road beyond it, the ego at 9 m/s."""
+    slow = driving("crawler", 25.0, 0.0, speed, length=4.3, width=1.8)
+    problem = two_lane_problem(
+        straight(200.0),
+        speed=9.0,
+        obstacles=(slow, *others),
+        road=False,
+        vehicle=vehicle,  # type: ignore[arg-type]
+    )
+    return replace(problem, lane=Lane(half_width, half_width))
+
+
+@pytest.mark.parametrize("vehicle", VEHICLES)
+def test_a_crawling_car_with_room_beside_it_in_its_lane_is_passed_within_the_lane(
+    vehicle: Vehicle | None,
+) -> None:
+    problem = crawler(4.5, vehicle)
+    first = plan(problem)
+    decision = first.diagnostics.decision
+    assert first.status == "ok" and decision.lane is LaneChoice.KEEP
+    reason = decision.reason
+    assert (reason.kind, reason.block, reason.obstacle_id) == (
+        ReasonKind.PASSING_IN_LANE,
+        BlockKind.SLOW_VEHICLE,
+        "crawler",
+    )
+    assert reason.side == "left" and reason.message.endswith("passing it within the lane on the left")
+    assert decision.passing == frozenset({"crawler"})
+    in_road(problem, first)
+    run = simulate(problem, duration=8.0, goal=Goal(s_min=60.0))
+    m = run.metrics
+    assert m.termination == "goal" and m.collisions == 0 and m.max_lane_departure <= 1e-3
+    crawler_front = 25.0 + 0.1 * float(run.motion.t[-1]) + 2.15
+    assert float(run.motion.x[-1]) > crawler_front  # past it
+
+
+def test_a_crawling_car_that_leaves_no_room_in_the_lane_is_followed_as_before() -> None:
+    problem = crawler(1.75)
+    result = plan(problem)
+    decision = result.diagnostics.decision
+    assert decision.lane is LaneChoice.KEEP and decision.reason.kind is not ReasonKind.PASSING_IN_LANE
+    assert decision.passing == frozenset()
+    crawler_rear = 25.0 + 0.1 * float(result.trajectory.t[-1]) - 2.15
+    assert float(np.max(result.trajectory.x)) + 0.5 * problem.vehicle.length < crawler_rear  # behind it
+
+
+def _followed(problem: PlanningProblem) -> None:
+    """The plan keeps behind the crawler, passes nothing and says no pass."""
+    result = plan(problem)
+    decision = result.diagnostics.decision
+    assert decision.lane is LaneChoice.KEEP and decision.reason.kind is not ReasonKind.PASSING_IN_LANE
+    assert decision.passing == frozenset()
+    crawler_rear = 25.0 + 0.1 * float(result.trajectory.t[-1]) - 2.15
+    assert float(np.max(result.trajectory.x)) + 0.5 * problem.vehicle.length < crawler_rear
+
+
+def test_a_crawling_car_is_passed_on_the_side_free_of_traffic_and_followed_where_neither_is() -> None:
+    # the same wide lane, but cars drive beside the ego at its speed where it would pass
+    for y, left in ((3.0, False), (-3.0, True)):
+        problem = crawler(4.5, others=(driving("beside", 0.0, y, 9.0),))
+        decision = plan(problem).diagnostics.decision
+        assert decision.reason.kind is ReasonKind.PASSING_IN_LANE
+        assert dict(decision.sides) == {"crawler": left}
+        assert decision.reason.side == ("left" if left else "right")
+    _followed(crawler(4.5, others=(driving("left", 0.0, 3.0, 9.0), driving("right", 0.0, -3.0, 9.0))))
+
+
+def test_a_car_coming_towards_the_vehicle_in_a_wide_lane_is_not_overtaken() -> None:
+    _followed(replace(crawler(4.5, speed=-0.5)))

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from planner.config import DEFAULT_CONFIG
 from planner.ego import start_state
-from planner.problem import Options
+from planner.problem import Lane, Options
 from planner.reference import build_reference
 from planner.roads import driving, straight, two_lane_problem
 from planner.traffic import ego_times, slow_vehicle
@@ -79,3 +79,22 @@ def test_a_vehicle_whose_prediction_ends_within_the_horizon_is_as_fast_as_it_dri
     slow = slow_vehicle(REF, replace(problem, obstacles=(crawling,)), start, at, DEFAULT_CONFIG)
     assert slow is not None and slow.obstacle_id == "car"
 
+
+def test_within_the_lane_only_a_vehicle_leaving_room_and_going_the_same_way_is_a_slow_vehicle() -> None:
+    start_problem = two_lane_problem(ROAD, speed=12.0)
+    start = start_state(REF, start_problem)
+    at = np.linspace(start.s, start.s + 150.0, 241)
+    wide = Lane(4.5, 4.5)
+    band = (-1.5, 1.5)  # the path's offsets and the vehicle's half width
+    for speed, found in ((3.0, True), (0.1, True), (-3.0, False)):
+        car = driving("car", 40.0, 0.0, speed)
+        problem = replace(two_lane_problem(ROAD, speed=12.0, obstacles=(car,), road=False), lane=wide)
+        slow = slow_vehicle(REF, problem, start, at, DEFAULT_CONFIG, in_lane=band)
+        assert (slow is not None) is found
+        # a lane it fills is the borrow's business, not a pass within it
+        narrow = replace(problem, lane=Lane(1.75, 1.75))
+        assert slow_vehicle(REF, narrow, start, at, DEFAULT_CONFIG, in_lane=band) is None
+    # one off the path's band is not in the way
+    aside_car = driving("car", 40.0, 3.0, 3.0)
+    aside = replace(two_lane_problem(ROAD, speed=12.0, obstacles=(aside_car,), road=False), lane=wide)
+    assert slow_vehicle(REF, aside, start, at, DEFAULT_CONFIG, in_lane=band) is None

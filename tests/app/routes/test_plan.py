@@ -420,3 +420,28 @@ def test_a_wall_across_the_lane_but_not_the_road_is_passed_through_the_road(clie
     assert decision["reason"]["obstacle_id"] == "wall"
     assert "t" not in decision["reason"] and "oncoming_id" not in decision["reason"]
     assert max(_column(out, "d")) > 2.0
+
+
+def test_a_crawling_car_in_a_wide_lane_is_passed_within_it_and_the_answer_says_so(client: TestClient) -> None:
+    crawl = [{"t": t, "x": 45.0 + 0.1 * t, "y": 0.0, "heading": 0.0} for t in np.arange(0.0, 8.01, 0.5)]
+    body = {
+        "reference_line": [[0.0, 0.0], [300.0, 0.0]],
+        "lane": {"left_width": 4.5, "right_width": 4.5},  # three lanes of one direction as one
+        "obstacles": [{"id": "crawler", "length": 4.3, "width": 1.8, "prediction": crawl}],
+        "ego": {"x": 20.0, "y": 0.0, "heading": 0.0, "speed": 9.0},
+        "options": {"target_speed": 9.0},
+    }
+    out = _plan(client, body)
+    assert out["status"] == "ok", out["message"]
+    decision = out["diagnostics"]["decision"]
+    assert decision["lane"] == "keep"
+    reason = decision["reason"]
+    assert (reason["kind"], reason["block"], reason["obstacle_id"], reason["side"]) == (
+        "passing_in_lane",
+        "slow_vehicle",
+        "crawler",
+        "left",
+    )
+    assert "within the lane on the left" in reason["message"]
+    assert max(_column(out, "d")) > 0.9 + 0.9  # beside it: the two half widths apart
+    assert plan_problems(body, out, ["ok"]) == []
