@@ -36,7 +36,9 @@ one side and no other moving obstacle is in the vehicle's width beside it there 
 vehicle may be (:func:`planner.traffic.first_inside`, the borrow's check of the road it would take); its
 roomier side first. The lane stays kept, the corridor is the lane itself, the swept box is bounded as a static
 obstacle's on that side, and the speed profile does not follow it. Without this the lateral stage, which
-bounds static obstacles only, followed it, to a standstill behind one that crawls.
+bounds static obstacles only, followed it, to a standstill behind one that crawls. A pass whose path must
+stop before the sweep (the lateral stage keeps a margin to the lane's edges that this check does not) is
+dropped for the lane plan, which follows it (:attr:`Decision.passes_within`, :mod:`planner.pipeline`).
 """
 
 from __future__ import annotations
@@ -197,6 +199,11 @@ class Decision:
         """Whether the plan borrows the road beyond its lane."""
         return self.lane is not LaneChoice.KEEP
 
+    @property
+    def passes_within(self) -> bool:
+        """Whether the plan passes a slow vehicle within its lane (:data:`ReasonKind.PASSING_IN_LANE`)."""
+        return self.reason.kind is ReasonKind.PASSING_IN_LANE
+
 
 #: the decision when nothing blocks the lane
 KEEP_LANE = Decision(LaneChoice.KEEP, Reason(ReasonKind.LANE_FREE))
@@ -323,7 +330,7 @@ def _pass_within(
     need = v.width + 2.0 * margin
     along = (float(swept.s_min[0]) - v.length, float(swept.s_max[0]) + v.length)
     lane_left, lane_right = problem.lane.widths(ref, at)
-    reach = float(max(np.max(lane_left), np.max(lane_right)))
+    lane_reach = float(max(np.max(lane_left), np.max(lane_right)))
     # the lane is open beside the box where the footprint overlaps it along the reference (elsewhere the
     # bounds are the lane plan's, which does not stop); the geometry the same for both sides
     beside = at[
@@ -335,7 +342,8 @@ def _pass_within(
     for left in (bool(left_of[-1]), not left_of[-1]):  # its roomier side first
         # no other traffic beside it, in the vehicle's width, where and while the vehicle may be there
         edge = float(swept.d_max[0]) if left else float(swept.d_min[0]) - need
-        if first_inside(ref, problem, start, along, (edge, edge + need), reach, passing, config) is not None:
+        traffic = first_inside(ref, problem, start, along, (edge, edge + need), lane_reach, passing, config)
+        if traffic is not None:
             continue
         left_of[-1] = left
         if geometry is None:

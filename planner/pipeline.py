@@ -95,7 +95,9 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
             sides=decision.sides,
         )
     borrowing = replace(run, cands=borrow.cands, best=borrow.best, stats=borrow.stats)
-    driven = drive(borrowing, solvers, through, borrow.path) if through.path is not None else None
+    # a pass within the lane that must stop before the slow vehicle's sweep is worse than following it
+    usable = through.path is not None and not (decision.passes_within and through.stops)
+    driven = drive(borrowing, solvers, through, borrow.path) if usable else None
     if driven is not None and (driven.result is not None or driven.overrun):
         return driven.answer(borrowing)
     # no path through the road from here, or one that breaks a check: the lane plan stands if it passes

@@ -351,3 +351,15 @@ def test_a_crawling_car_is_passed_on_the_side_free_of_traffic_and_followed_where
 
 def test_a_car_coming_towards_the_vehicle_in_a_wide_lane_is_not_overtaken() -> None:
     _followed(replace(crawler(4.5, speed=-0.5)))
+
+
+def test_a_pass_within_the_lane_that_would_stop_before_the_slow_vehicle_is_dropped_for_following_it() -> None:
+    # 2 cm to spare beside a 2.46 m wide crawler with no margin to the lane's edge: the lateral stage,
+    # which keeps its margin, stops before the crawler's sweep; following it at 2.94 m/s is better
+    slow = driving("crawler", 39.8, -0.78, 2.94, length=4.5, width=2.46)
+    problem = two_lane_problem(straight(300.0), speed=11.39, obstacles=(slow,), road=False, vehicle=CAR)
+    problem = replace(problem, lane=Lane(2.13, 4.43))
+    result = plan(problem)
+    assert result.status == "ok", result.message
+    assert result.diagnostics.decision.reason.kind is ReasonKind.LANE_FREE
+    assert float(result.trajectory.v[-1]) > 2.0  # follows it, does not stop
