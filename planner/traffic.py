@@ -1,5 +1,6 @@
 """The moving obstacles in the lane decision (:mod:`planner.decision`): when the vehicle can be where,
-the slow vehicle ahead it may overtake, and the traffic in the road it would borrow.
+the slow vehicle ahead it may overtake, and the traffic in the road it would borrow (or beside a
+vehicle it would pass within its lane).
 
 Times come from two nominal speed profiles along the reference (:func:`ego_times`): the earliest the
 vehicle can be somewhere and a late estimate; the moving obstacles' Frenet boxes over time from
@@ -112,9 +113,9 @@ def first_inside(
     config: PlannerConfig,
 ) -> tuple[str, float] | None:
     """The first moving obstacle (other than ``excluded``) whose Frenet box reaches into the space
-    ``along`` × ``across`` (arc length [m] × offset [m], bounds excluded) where and while the vehicle may
-    be there (its footprint with ``obstacle_margin`` and ``stop_gap`` from its late position at
-    ``t − time_margin`` to its earliest at ``t + time_margin``, :func:`ego_times`), and from when [s];
+    ``along`` × ``across`` (arc length [m] × offset [m], the offsets' bounds excluded) where and while the
+    vehicle may be there (its footprint with ``obstacle_margin`` and ``stop_gap`` from its late position
+    at ``t − time_margin`` to its earliest at ``t + time_margin``, :func:`ego_times`), and from when [s];
     None when it stays clear. Movers farther than ``reach`` [m] from the reference are not looked at."""
     movers = [ob for ob in moving_obstacles(problem) if ob.id not in excluded]
     if not movers:
