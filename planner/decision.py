@@ -328,7 +328,8 @@ def _pass_within(
     left_of = _roomier(ref, problem, problem.lane, at, boxes)
     swept, v, passing = slow.swept, problem.vehicle, frozenset(slow.swept.ids)
     need = v.width + 2.0 * margin
-    along = (float(swept.s_min[0]) - v.length, float(swept.s_max[0]) + v.length)
+    # from where the vehicle is: its path swings out from here
+    along = (min(start.s, float(swept.s_min[0]) - v.length), float(swept.s_max[0]) + v.length)
     lane_left, lane_right = problem.lane.widths(ref, at)
     lane_reach = float(max(np.max(lane_left), np.max(lane_right)))
     # the lane is open beside the box where the footprint overlaps it along the reference (elsewhere the
@@ -340,9 +341,13 @@ def _pass_within(
         return None
     geometry: KnotGeometry | None = None
     for left in (bool(left_of[-1]), not left_of[-1]):  # its roomier side first
-        # no other traffic beside it, in the vehicle's width, where and while the vehicle may be there
-        edge = float(swept.d_max[0]) if left else float(swept.d_min[0]) - need
-        traffic = first_inside(ref, problem, start, along, (edge, edge + need), lane_reach, passing, config)
+        # no other traffic in the lane beside it (the path may use all of it) where and while the vehicle
+        # may be there
+        if left:
+            across = (float(swept.d_max[0]), max(float(swept.d_max[0]) + need, float(np.max(lane_left))))
+        else:
+            across = (min(float(swept.d_min[0]) - need, -float(np.max(lane_right))), float(swept.d_min[0]))
+        traffic = first_inside(ref, problem, start, along, across, lane_reach, passing, config)
         if traffic is not None:
             continue
         left_of[-1] = left

@@ -9,6 +9,7 @@ vehicle can be somewhere and a late estimate; the moving obstacles' Frenet boxes
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -144,6 +145,17 @@ def first_inside(
     return near[k].id, float(t[first[k]])
 
 
+def _ground_speed(movers: list[DynamicObstacle], horizon: float) -> FloatArray:
+    """Each mover's average speed over the ground [m/s] from now to the end of its prediction or of the
+    horizon [s], whichever comes first (0 for a prediction that ends now)."""
+    speeds = []
+    for ob in movers:
+        end = min(max(float(ob.prediction[-1, 0]), 0.0), horizon)
+        (x0, y0, _), (x1, y1, _) = prediction_at(ob, np.array([0.0, end]))
+        speeds.append(math.hypot(x1 - x0, y1 - y0) / end if end > 0.0 else 0.0)
+    return np.array(speeds)
+
+
 @dataclass(frozen=True)
 class SlowVehicle:
     """A slow vehicle ahead: its id, where its box starts [m] and the box it sweeps until the vehicle is
@@ -166,8 +178,9 @@ def slow_vehicle(
     it in the lane (``in_lane``: that leaves room, and whose box now reaches into this band of offsets
     ``(d_low, d_high)`` [m], the path's, and that goes the same way) and drives much slower than the
     target speed (along the reference, over the horizon or its prediction if that ends sooner), and the
-    box it sweeps until the vehicle, at its earliest (:func:`ego_times`), is ``pass_headway`` of its speed
-    (at least ``stop_gap``) ahead of it."""
+    box it sweeps until the vehicle, at its earliest (:func:`ego_times`; with ``in_lane`` at the late
+    estimate, and at most over the horizon), is ``pass_headway`` of its speed (at least ``stop_gap``)
+    ahead of it."""
     movers = moving_obstacles(problem)
     if not movers:
         return None
@@ -185,10 +198,15 @@ def slow_vehicle(
     need = v.width + 2.0 * problem.options.lateral_margin
     no_room = np.maximum(left0 - d_max[:, 0], d_min[:, 0] + right0) < need
     ahead = (s_max[:, 0] + config.stop_gap >= start.s - v.rear_extent) & (s_min[:, 0] <= float(at[-1]))
+    target = target_speed(problem)
+    slow_below = min(cfg.slow_share * target, target - cfg.slow_margin)
     if in_lane is None:
         kept = no_room & ahead
     else:
         kept = ~no_room & ahead & (d_max[:, 0] >= in_lane[0]) & (d_min[:, 0] <= in_lane[1])
+        # one not slow over the ground is not passed within the lane (along the reference it drives no
+        # faster, but for a bend's stretch): a cheap test before its track, for most leaders in a wide lane
+        kept &= _ground_speed(near, problem.options.horizon_time) < slow_below
     near = [near[k] for k in np.flatnonzero(kept)]
     if not near:
         return None
@@ -204,8 +222,7 @@ def slow_vehicle(
     rows = np.arange(len(near))
     ends = mid[rows, lo] + (at_end - lo) * (mid[rows, lo + 1] - mid[rows, lo])
     speed = (ends - mid[:, 0]) / span
-    target = target_speed(problem)
-    slow = (speed < cfg.slow_share * target) & (speed < target - cfg.slow_margin)
+    slow = speed < slow_below
     if in_lane is not None:  # within the lane, only a vehicle going the same way is overtaken
         slow &= speed >= 0.0
     gap = np.maximum(cfg.pass_headway * np.maximum(speed, 0.0), config.stop_gap)
@@ -214,12 +231,15 @@ def slow_vehicle(
     if chosen.size == 0:
         return None
     k = int(chosen[np.argmin(s_min[chosen, 0])])
-    early, _ = ego_times(ref, problem, start, np.linspace(start.s, float(at[-1]), 400), config)
-    ego_s = np.interp(t, early, np.linspace(start.s, float(at[-1]), 400), right=np.inf)
+    grid = np.linspace(start.s, float(at[-1]), 400)
+    early, late = ego_times(ref, problem, start, grid, config)
+    # within the lane the pass is bounded by this box alone (no corridor's ramps): until surely past
+    ego_s = np.interp(t, early if in_lane is None else late, grid, right=np.inf)
     past = np.flatnonzero(ego_s - v.rear_extent >= s_max[k] + gap[k])
-    if past.size == 0:
+    if past.size == 0 and in_lane is None:
         return SlowVehicle(near[k].id, float(s_min[k, 0]), None)
-    upto = slice(0, int(past[0]) + 1)
+    # (within the lane, a pass not done within the horizon stays beside it: the box to the horizon's end)
+    upto = slice(0, int(past[0]) + 1 if past.size else t.shape[0])
     swept = FrenetBoxes(
         (near[k].id,),
         np.array([float(np.min(s_min[k, upto]))]),
