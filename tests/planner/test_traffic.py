@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from planner.config import DEFAULT_CONFIG
 from planner.ego import start_state
-from planner.problem import Lane, Options
+from planner.problem import DynamicObstacle, Lane, Options
 from planner.reference import build_reference
 from planner.roads import driving, straight, two_lane_problem
 from planner.traffic import ego_times, slow_vehicle
@@ -98,3 +98,16 @@ def test_within_the_lane_only_a_vehicle_leaving_room_and_going_the_same_way_is_a
     aside_car = driving("car", 40.0, 3.0, 3.0)
     aside = replace(two_lane_problem(ROAD, speed=12.0, obstacles=(aside_car,), road=False), lane=wide)
     assert slow_vehicle(REF, aside, start, at, DEFAULT_CONFIG, in_lane=band) is None
+
+
+def test_within_the_lane_a_vehicle_fast_over_the_ground_but_slow_along_the_reference_is_none() -> None:
+    # it crosses the wide lane at 8 m/s: along the reference it does not move, over the ground it is fast
+    start = start_state(REF, two_lane_problem(ROAD, speed=12.0))
+    at = np.linspace(start.s, start.s + 150.0, 241)
+    t = np.linspace(0.0, 60.0, 121)
+    states = np.column_stack((t, np.full_like(t, 40.0), 8.0 * t, np.full_like(t, np.pi / 2)))
+    crossing = DynamicObstacle("crossing", 4.5, 1.8, states)
+    problem = replace(
+        two_lane_problem(ROAD, speed=12.0, obstacles=(crossing,), road=False), lane=Lane(4.5, 4.5)
+    )
+    assert slow_vehicle(REF, problem, start, at, DEFAULT_CONFIG, in_lane=(-1.5, 1.5)) is None
