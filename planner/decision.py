@@ -29,16 +29,18 @@ QP, speed profile) consume them. It runs after the plan in the lane (candidates,
 An ego already outside its lane keeps borrowing until it is back: it never waits in the road. A borrow
 the lateral stage finds no path for is dropped for the lane plan (:func:`no_path`).
 
-A much slower vehicle going the same way that leaves room beside it *in* the lane (a wide lane; several
-lanes of one direction a converter merged) is passed within it (``passing_in_lane``,
-:func:`_pass_within`) when the lane plan's path runs into it, the lane stays open beside its swept box on
-one side and no other moving obstacle is in the vehicle's width beside it there where and while the
-vehicle may be (:func:`planner.traffic.first_inside`, the borrow's check of the road it would take); its
-roomier side first. The lane stays kept, the corridor is the lane itself, the swept box is bounded as a static
-obstacle's on that side, and the speed profile does not follow it. Without this the lateral stage, which
-bounds static obstacles only, followed it, to a standstill behind one that crawls. A pass whose path must
-stop before the sweep (the lateral stage keeps a margin to the lane's edges that this check does not) is
-dropped for the lane plan, which follows it (:attr:`Decision.passes_within`, :mod:`planner.pipeline`).
+A much slower vehicle going the same way (slow along the reference and over the ground) that leaves room
+beside it *in* the lane (a wide lane; several lanes of one direction a converter merged) is passed within
+it (``passing_in_lane``, :func:`_pass_within`) when the lane plan's path runs into the box it sweeps
+until the vehicle, at a late estimate, is past it (:func:`planner.traffic.slow_vehicle`), the lane stays
+open beside that box on one side and no other moving obstacle is in the lane beside it, from where the
+vehicle is, where and while the vehicle may be there (:func:`planner.traffic.first_inside`, the borrow's
+check of the road it would take); its roomier side first. The lane stays kept, the corridor is the lane
+itself, the swept box is bounded as a static obstacle's on that side, and the speed profile does not
+follow it. Without this the lateral stage, which bounds static obstacles only, followed it, to a
+standstill behind one that crawls. A pass whose path must stop before the sweep (the lateral stage keeps
+a margin to the lane's edges that this check does not) is dropped for the lane plan, which follows it
+(:attr:`Decision.passes_within`, :mod:`planner.pipeline`).
 """
 
 from __future__ import annotations
@@ -308,9 +310,10 @@ def _pass_within(
     """Pass a much slower vehicle going the same way that leaves room beside it within the lane (a wide
     lane, a lane of several the converter merged): its swept box until the vehicle is past it bounded as a
     static obstacle's, where the lane plan's path meets it, on a side (the roomier first) where the lane
-    stays open beside it over the whole sweep and no other moving obstacle is in the vehicle's width
-    (with ``lateral_margin`` either side) beside the box, a vehicle length before and after it, where and
-    while the vehicle may be there; None otherwise (the speed profile follows it)."""
+    stays open beside it over the whole sweep and no other moving obstacle is in the lane beside the box
+    (at least the vehicle's width with ``lateral_margin`` either side), from where the vehicle is to a
+    vehicle length past the box, where and while the vehicle may be there; None otherwise (the speed
+    profile follows it)."""
     path = lane_plan.path
     if path is None:
         return None
