@@ -19,11 +19,9 @@ and yet not past the truck (its seed, statuses, end and arc length).
 
 from __future__ import annotations
 
-import argparse
 import collections
 import math
 import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,7 +35,7 @@ from planner.frenet import to_cartesian  # noqa: E402 (after the path fix)
 from planner.reference import build_reference  # noqa: E402
 from planner.roads import arc, straight  # noqa: E402
 from planner_tools.io import problem_from_json  # noqa: E402
-from planner_tools.sim import simulate  # noqa: E402
+from planner_tools.loops import seeded_loops  # noqa: E402
 
 #: a run's footprint this far outside the road [m] is a departure
 DEPARTURE = 0.02
@@ -126,34 +124,17 @@ def scene(seed: int) -> Scene:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--runs", type=int, default=100, help="how many scenes")
-    parser.add_argument("--seed", type=int, default=0, help="the first scene's seed (then one up)")
-    parser.add_argument("--duration", type=float, default=16.0, help="simulated seconds per run")
-    args = parser.parse_args(argv)
-    statuses: collections.Counter[str] = collections.Counter()
     past: collections.Counter[tuple[bool, bool]] = collections.Counter()
-    began = time.perf_counter()
-    for seed in range(args.seed, args.seed + args.runs):
-        sc = scene(seed)
-        result = simulate(problem_from_json(sc.request), duration=args.duration)
-        counts = collections.Counter(step.status for step in result.steps)
-        statuses.update(counts)
-        m = result.metrics
+    for loop in seeded_loops(__doc__, 16.0, argv, scene, lambda sc: problem_from_json(sc.request)):
+        sc, m = loop.scene, loop.result.metrics
         got_past = m.final_s > sc.truck_s + sc.truck_length / 2 + 5.0
         past[(sc.oncoming, got_past)] += 1
-        problems = [f"{name} {counts[name]}" for name in ("fallback", "error") if counts[name]]
-        if m.collisions:
-            problems.append(f"collision with {', '.join(m.collided_with)}")
+        problems = loop.failures
         if m.max_road_departure is not None and m.max_road_departure > DEPARTURE:
             problems.append(f"{m.max_road_departure:.2f} m off the road")
         if not sc.oncoming and not got_past:
             problems.append("not past the truck, no oncoming traffic")
-        if problems:
-            end = f"{m.termination} at s = {m.final_s:.1f} m"
-            print(f"seed {seed}: {dict(counts)}, {end}: {'; '.join(problems)}")
-    runs, wall = args.runs, time.perf_counter() - began
-    print(f"{runs} runs of {args.duration:g} s ({wall:.0f} s wall): cycles {dict(statuses)}")
+        loop.report(problems)
     for oncoming in (False, True):
         total = past[(oncoming, True)] + past[(oncoming, False)]
         label = "with an oncoming car" if oncoming else "without oncoming traffic"

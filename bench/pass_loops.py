@@ -22,10 +22,8 @@ stopped (its seed, statuses, end).
 
 from __future__ import annotations
 
-import argparse
 import collections
 import sys
-import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -38,7 +36,7 @@ from planner.frenet import to_cartesian  # noqa: E402 (after the path fix)
 from planner.problem import DynamicObstacle, Lane, PlanningProblem, Vehicle  # noqa: E402
 from planner.reference import ReferenceLine, build_reference  # noqa: E402
 from planner.roads import arc, straight, two_lane_problem  # noqa: E402
-from planner_tools.sim import simulate  # noqa: E402
+from planner_tools.loops import seeded_loops  # noqa: E402
 
 #: a run's footprint this far outside the lane [m] is a departure
 DEPARTURE = 0.02
@@ -104,35 +102,18 @@ def scene(seed: int) -> Scene:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--runs", type=int, default=100, help="how many scenes")
-    parser.add_argument("--seed", type=int, default=0, help="the first scene's seed (then one up)")
-    parser.add_argument("--duration", type=float, default=10.0, help="simulated seconds per run")
-    args = parser.parse_args(argv)
-    statuses: collections.Counter[str] = collections.Counter()
     past: collections.Counter[tuple[bool, bool]] = collections.Counter()
-    began = time.perf_counter()
-    for seed in range(args.seed, args.seed + args.runs):
-        sc = scene(seed)
-        result = simulate(sc.problem, duration=args.duration)
-        counts = collections.Counter(step.status for step in result.steps)
-        statuses.update(counts)
-        m = result.metrics
+    for loop in seeded_loops(__doc__, 10.0, argv, scene, lambda sc: sc.problem):
+        sc, m = loop.scene, loop.result.metrics
         slow_front = sc.slow_s + sc.slow_speed * m.sim_time + 2.25
         if sc.passable:
             past[(sc.beside, m.final_s - sc.problem.vehicle.rear_extent > slow_front)] += 1
-        problems = [f"{name} {counts[name]}" for name in ("fallback", "error") if counts[name]]
-        if counts["stopped"] >= STOPPED:
-            problems.append(f"stopped for {counts['stopped']} cycles")
-        if m.collisions:
-            problems.append(f"collision with {', '.join(m.collided_with)}")
+        problems = loop.failures
+        if loop.counts["stopped"] >= STOPPED:
+            problems.append(f"stopped for {loop.counts['stopped']} cycles")
         if m.max_lane_departure > DEPARTURE:
             problems.append(f"{m.max_lane_departure:.2f} m out of the lane")
-        if problems:
-            end = f"{m.termination} at s = {m.final_s:.1f} m"
-            print(f"seed {seed}: {dict(counts)}, {end}: {'; '.join(problems)}")
-    wall = time.perf_counter() - began
-    print(f"{args.runs} runs of {args.duration:g} s ({wall:.0f} s wall): cycles {dict(statuses)}")
+        loop.report(problems)
     for beside in (False, True):
         total = past[(beside, True)] + past[(beside, False)]
         label = "with traffic beside" if beside else "alone"

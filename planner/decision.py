@@ -323,8 +323,8 @@ def _pass_within(
     slow = slow_vehicle(ref, problem, start, at, config, in_lane=band)
     if slow is None or slow.swept is None:
         return None
-    one = np.clip(1.0 - ref.kappa_at(path.s) * path.d, config.lateral.min_stretch, None)
-    heading = np.arctan(np.gradient(path.d, path.s) / one) if path.s.shape[0] > 1 else np.zeros(1)
+    turned = path.heading - ref.heading_at(path.s)  # the path's heading error, wrapped to (−π, π]
+    heading = np.arctan2(np.sin(turned), np.cos(turned))
     if not box_hits(slow.swept, path.s, path.d, footprint_extent(heading, problem.vehicle, margin)).any():
         return None  # the lane plan passes it already
     boxes = _merged(lane_boxes, slow.swept)
