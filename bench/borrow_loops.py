@@ -1,17 +1,20 @@
 """Borrowing the road in closed loop on random scenes: ``python bench/borrow_loops.py`` drives, per run, a
-car or a point-model vehicle towards a lane-wide parked truck with the opposite lane in ``road``, and in
-60 % of the runs an oncoming car in that lane, and prints how the runs went (asserts nothing).
+car or a point-model vehicle towards a lane-wide truck, parked or (in 40 % of the runs) crawling along the
+lane, with the opposite lane in ``road``, and in 60 % of the runs an oncoming car in that lane, and prints
+how the runs went (asserts nothing).
 
 A scene (seeded, so each run is reproducible by its seed): a straight, or a bend of radius 50–250 m
 between straights; the lane ±1.75 m, the road 3.5 m wider on the left (the opposite lane) and up to 1 m
 on the right; the ego on the reference at 0–12 m/s; the truck 6–12 m long and 2.6–3.3 m wide, centred
-within 0.2 m of the reference 15–70 m beyond the ego's stopping distance; the oncoming car 4.5 × 1.8 m at
-4–15 m/s in the middle of the opposite lane, starting 10–160 m beyond the truck. Each run replans every
-0.1 s for ``--duration`` seconds (:func:`planner_tools.sim.simulate`).
+within 0.2 m of the reference 15–70 m beyond the ego's stopping distance, crawling at 0.5–4 m/s in 40 %
+of the runs (drawn apart: the other draws of a seed are those of a parked truck); the oncoming car
+4.5 × 1.8 m at 4–15 m/s in the middle of the opposite lane, starting 10–160 m beyond the truck. Each run
+replans every 0.1 s for ``--duration`` seconds (:func:`planner_tools.sim.simulate`).
 
-Printed: the cycles per status, how many runs got past the truck (with and without oncoming traffic),
-and every run with a collision, a departure from the road, a fallback, an error, or no oncoming traffic
-and yet not past the truck (its seed, statuses, end and arc length).
+Printed: the cycles per status, how many runs got past the truck (parked or crawling, with and without
+oncoming traffic), and every run with a collision, a departure from the road, a fallback, an error, or
+no oncoming traffic and yet not past the truck where it is at the end (its seed, statuses, end and arc
+length).
 
     python bench/borrow_loops.py                       # 100 runs from seed 0
     python bench/borrow_loops.py --runs 300 --seed 700000 --duration 16
@@ -43,12 +46,13 @@ DEPARTURE = 0.02
 
 @dataclass(frozen=True)
 class Scene:
-    """A run's request (the planner's JSON) and where its truck is: arc length of its centre and its
-    length [m]; whether an oncoming car is in it."""
+    """A run's request (the planner's JSON) and where its truck is: arc length of its centre at the
+    start, its length [m] and its speed [m/s]; whether an oncoming car is in it."""
 
     request: dict[str, Any]
     truck_s: float
     truck_length: float
+    truck_speed: float
     oncoming: bool
 
 
@@ -100,13 +104,26 @@ def scene(seed: int) -> Scene:
     }
     truck_s = s0 + v0**2 / 7.0 + 10.0 + float(rng.uniform(15, 70))
     length, width = float(rng.uniform(6, 12)), float(rng.uniform(2.6, 3.3))
-    xc, yc, hc = at(truck_s, float(rng.uniform(-0.2, 0.2)))
-    along, across = np.array([math.cos(hc), math.sin(hc)]), np.array([-math.sin(hc), math.cos(hc)])
-    corners = [
-        np.array([xc, yc]) + sx * length / 2 * along + sy * width / 2 * across
-        for sx, sy in ((1, 1), (-1, 1), (-1, -1), (1, -1))
-    ]
-    request["obstacles"].append({"id": "truck", "polygon": [c.tolist() for c in corners]})
+    offset = float(rng.uniform(-0.2, 0.2))
+    moving = np.random.default_rng((seed, 1))  # apart: a crawling truck leaves the other draws as they were
+    crawl = float(moving.uniform(0.5, 4.0)) if moving.random() < 0.4 else 0.0
+    if crawl > 0.0:
+        times = np.arange(0.0, 20.0 + 1e-9, 0.2)
+        s_truck = truck_s + crawl * times
+        xy = to_cartesian(ref, s_truck, np.full_like(s_truck, offset))
+        states = [
+            {"t": float(tk), "x": float(x), "y": float(y), "heading": float(ref.heading_at(sk))}
+            for tk, (x, y), sk in zip(times, xy, s_truck, strict=True)
+        ]
+        request["obstacles"].append({"id": "truck", "length": length, "width": width, "prediction": states})
+    else:
+        xc, yc, hc = at(truck_s, offset)
+        along, across = np.array([math.cos(hc), math.sin(hc)]), np.array([-math.sin(hc), math.cos(hc)])
+        corners = [
+            np.array([xc, yc]) + sx * length / 2 * along + sy * width / 2 * across
+            for sx, sy in ((1, 1), (-1, 1), (-1, -1), (1, -1))
+        ]
+        request["obstacles"].append({"id": "truck", "polygon": [c.tolist() for c in corners]})
     oncoming = bool(rng.random() < 0.6)
     if oncoming:
         start, speed = truck_s + float(rng.uniform(10, 160)), float(rng.uniform(4, 15))
@@ -120,25 +137,32 @@ def scene(seed: int) -> Scene:
             for tk, (x, y), h in zip(times, xy, heading, strict=True)
         ]
         request["obstacles"].append({"id": "oncoming", "length": 4.5, "width": 1.8, "prediction": states})
-    return Scene(request, truck_s, length, oncoming)
+    return Scene(request, truck_s, length, crawl, oncoming)
 
 
 def main(argv: list[str] | None = None) -> int:
-    past: collections.Counter[tuple[bool, bool]] = collections.Counter()
+    past: collections.Counter[tuple[bool, bool, bool]] = collections.Counter()
     for loop in seeded_loops(__doc__, 16.0, argv, scene, lambda sc: problem_from_json(sc.request)):
         sc, m = loop.scene, loop.result.metrics
-        got_past = m.final_s > sc.truck_s + sc.truck_length / 2 + 5.0
-        past[(sc.oncoming, got_past)] += 1
+        truck_end = sc.truck_s + sc.truck_speed * float(loop.result.motion.t[-1])
+        got_past = m.final_s > truck_end + sc.truck_length / 2 + 5.0
+        past[(sc.truck_speed > 0.0, sc.oncoming, got_past)] += 1
         problems = loop.failures
         if m.max_road_departure is not None and m.max_road_departure > DEPARTURE:
             problems.append(f"{m.max_road_departure:.2f} m off the road")
         if not sc.oncoming and not got_past:
             problems.append("not past the truck, no oncoming traffic")
         loop.report(problems)
-    for oncoming in (False, True):
-        total = past[(oncoming, True)] + past[(oncoming, False)]
-        label = "with an oncoming car" if oncoming else "without oncoming traffic"
-        print(f"  {label}: {past[(oncoming, True)]} of {total} past the truck")
+    for moving in (False, True):
+        for oncoming in (False, True):
+            got, total = (
+                past[(moving, oncoming, True)],
+                past[(moving, oncoming, True)] + past[(moving, oncoming, False)],
+            )
+            label = ("crawling" if moving else "parked") + (
+                ", an oncoming car" if oncoming else ", no oncoming traffic"
+            )
+            print(f"  {label}: {got} of {total} past the truck")
     return 0
 
 
