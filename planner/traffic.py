@@ -57,13 +57,14 @@ def _near_movers(
     ref: ReferenceLine, movers: list[DynamicObstacle], t: FloatArray, s_lo: float, s_hi: float, reach: float
 ) -> tuple[list[DynamicObstacle], list[FloatArray]]:
     """The movers whose predicted centres come within ``reach`` [m] plus their own size of the reference
-    between ``s_lo`` and ``s_hi`` [m] at some time of ``t`` [s], with their states then."""
+    between ``s_lo`` and ``s_hi`` [m] (widened by as much) at some time of ``t`` [s], with their states
+    then. Along it too their size counts: a long truck beside the vehicle has its centre behind it."""
     states = [prediction_at(ob, t) for ob in movers]
     pts = np.concatenate(states)[:, :2]
     dist, idx = ref.tree.query(pts)
     size = np.repeat([np.hypot(ob.length, ob.width) for ob in movers], t.shape[0])
     s_near = ref.s[idx]
-    close = (dist <= reach + size) & (s_near >= s_lo - reach) & (s_near <= s_hi + reach)
+    close = (dist <= reach + size) & (s_near >= s_lo - reach - size) & (s_near <= s_hi + reach + size)
     near = np.flatnonzero(close.reshape(len(movers), -1).any(axis=1))
     return [movers[k] for k in near], [states[k] for k in near]
 

@@ -67,6 +67,19 @@ def test_a_slow_vehicle_in_the_lane_sweeps_a_box_until_the_vehicle_is_past_it() 
         )
 
 
+def test_a_long_slow_vehicle_beside_the_ego_is_not_yet_passed() -> None:
+    # the ego in the opposite lane beside a 12 m truck whose centre is 4 m behind it and whose front is
+    # 2 m ahead: the truck still blocks the lane the ego returns to (its centre alone is behind the ego)
+    truck = driving("truck", 46.0, 0.0, 3.0, length=12.0, width=3.0)
+    problem = two_lane_problem(ROAD, speed=10.0, obstacles=(truck,))
+    problem = replace(problem, ego=replace(problem.ego, x=50.0, y=3.5))
+    start = start_state(REF, problem)
+    at = np.linspace(start.s, start.s + 100.0, 161)
+    slow = slow_vehicle(REF, problem, start, at, DEFAULT_CONFIG)
+    assert slow is not None and slow.obstacle_id == "truck" and slow.swept is not None
+    assert slow.swept.s_max[0] > 52.0 + 3.0  # its front, and a headway ahead of it
+
+
 def test_a_vehicle_whose_prediction_ends_within_the_horizon_is_as_fast_as_it_drives() -> None:
     # predicted over 2 s of an 8 s horizon: held where it ends, it would average 3 m/s over the horizon
     car = driving("car", 40.0, 0.0, 12.0, length=4.5, width=2.5)
