@@ -16,8 +16,11 @@ QP, speed profile) consume them. It runs after the plan in the lane (candidates,
   blocked knots (its lateral bounds with the obstacles of the whole road, each passed on its roomier side,
   no margin to the lane's edges) merged with blocks that follow closer than a return; a slow vehicle
   blocks where it is swept from now until the vehicle, at its earliest, is a ``pass_headway`` ahead of it
-  (:func:`planner.traffic.slow_vehicle`). The ramps are ``ramp_time`` of driving long, at least
-  ``min_ramp_lengths`` vehicle lengths;
+  (:func:`planner.traffic.slow_vehicle`). Where the lane plan stops because its path leaves the lane
+  (:attr:`planner.lateral.LateralPlan.leaves`; its bounds let it through) the block is what it swerves
+  round: an obstacle up to a swing-out's ramp beyond, else a slow vehicle ahead (on its way out round it,
+  a borrow begun), whose borrow then starts where the path leaves; else the bend. The ramps are
+  ``ramp_time`` of driving long, at least ``min_ramp_lengths`` vehicle lengths;
 * only if the corridor's lateral bounds are free over the interval and its ramps, an arc can take the
   planned point out far enough before the block, the way back into the lane is within the path (or past
   the reference's end) and no moving obstacle other than those overtaken is in the borrowed space — beyond
@@ -234,19 +237,31 @@ def decide(
     if road is None:
         if not lane_plan.stops or lane_plan.blocked is None:
             return KEEP_LANE
-        return _keep(ReasonKind.NO_ROAD, _what_blocks(ref, problem, at, lane_plan.blocked, lane_boxes))
+        block = _lane_block(ref, problem, at, lane_plan, lane_plan.blocked, lane_boxes, config)
+        if lane_plan.leaves and block.block is BlockKind.BEND:
+            # its path leaves the lane with nothing in the way there: round a vehicle too slow to follow
+            # and too wide to pass, if there is one (candidates weigh movers, the lane's bounds do not)
+            slow = slow_vehicle(ref, problem, start, at, config)
+            if slow is not None:
+                block = Reason(ReasonKind.NO_ROAD, BlockKind.SLOW_VEHICLE, slow.obstacle_id, slow.s)
+        return _keep(ReasonKind.NO_ROAD, block)
     stops = lane_plan.stops and lane_plan.blocked is not None
-    slow = None if stops else slow_vehicle(ref, problem, start, at, config)
+    slow = None if stops and not lane_plan.leaves else slow_vehicle(ref, problem, start, at, config)
     if not stops and out_on is None and slow is None:
         return KEEP_LANE
     boxes = frenet_boxes(ref, static, reach=corridor_width(problem, config, road=True))
     first: int | None = None
     reason = Reason(ReasonKind.RETURNING)
     passing: frozenset[str] = frozenset()
+    leaves_at: int | None = None
     if stops and lane_plan.blocked is not None:
         first = min(lane_plan.blocked, at.shape[0] - 1)
-        reason = _what_blocks(ref, problem, at, first, boxes)
-    elif slow is not None:
+        reason = _lane_block(ref, problem, at, lane_plan, first, boxes, config)
+        if slow is not None and reason.block is BlockKind.BEND:
+            # its path leaves the lane with nothing in the way there: on its way out round a slow vehicle
+            # (a borrow begun), or into a bend before it; the borrow passes that vehicle and covers both
+            stops, leaves_at = False, first
+    if not stops and slow is not None:
         reason = Reason(ReasonKind.PASSING, BlockKind.SLOW_VEHICLE, slow.obstacle_id, slow.s)
         if slow.swept is None:
             return _keep(ReasonKind.NO_RETURN, reason)
@@ -254,7 +269,9 @@ def decide(
         passing = frozenset(slow.swept.ids)
     blocked = _blocked(ref, problem, _bounds(ref, problem, problem.lane, at, boxes, config), config)
     if slow is not None:
-        first = int(np.argmax(blocked))  # the slow vehicle's swept box
+        if leaves_at is not None:
+            blocked[leaves_at] = True
+        first = int(np.argmax(blocked))  # the slow vehicle's swept box, or where the path leaves before it
     ego_s = start.s if out_on is not None else None
     span = _span(at, blocked, first, ego_s, problem, config)
     side = out_on or _side(ref, problem, road, at, boxes, span, reason, config)
@@ -432,16 +449,37 @@ def _blocked(
     return np.asarray((bounds.lower > bounds.upper) & (bounds.s < reach), dtype=bool)
 
 
+def _lane_block(
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    at: FloatArray,
+    lane_plan: LateralPlan,
+    knot: int,
+    boxes: FrenetBoxes,
+    config: PlannerConfig,
+) -> Reason:
+    """What stops ``lane_plan`` at knot ``knot`` of ``at`` (:func:`_what_blocks`). Where its path leaves
+    the lane there (:attr:`planner.lateral.LateralPlan.leaves`), also what it swerves round: an obstacle
+    up to a swing-out's ramp beyond."""
+    ahead = _ramps(problem, config)[0] if lane_plan.leaves else 0.0
+    return _what_blocks(ref, problem, at, min(knot, at.shape[0] - 1), boxes, ahead)
+
+
 def _what_blocks(
-    ref: ReferenceLine, problem: PlanningProblem, at: FloatArray, knot: int, boxes: FrenetBoxes
+    ref: ReferenceLine,
+    problem: PlanningProblem,
+    at: FloatArray,
+    knot: int,
+    boxes: FrenetBoxes,
+    ahead: float = 0.0,
 ) -> Reason:
     """What blocks the lane at knot ``knot`` of ``at``: the nearest obstacle whose box the footprint
-    overlaps along the reference there and which reaches into the lane; else a lane narrower than the
-    vehicle, or a bend."""
+    overlaps along the reference there, or up to ``ahead`` [m] beyond it, and which reaches into the
+    lane; else a lane narrower than the vehicle, or a bend."""
     v, margin = problem.vehicle, problem.options.lateral_margin
     s = float(at[knot])
     left, right = (float(w) for w in problem.lane.widths(ref, s))
-    along = (s + v.front_extent + margin >= boxes.s_min) & (s - v.rear_extent - margin <= boxes.s_max)
+    along = (s + v.front_extent + margin + ahead >= boxes.s_min) & (s - v.rear_extent - margin <= boxes.s_max)
     across = (boxes.d_max >= -right - margin) & (boxes.d_min <= left + margin)
     hits = np.flatnonzero(along & across)
     if hits.size:

@@ -788,7 +788,8 @@ class LateralPlan:
         obstacle_on_hold: whether an obstacle on the held offset is the block.
         waiting: whether the block is a line to wait at before the lane's own (:meth:`stopping_at`).
         leaves: whether the block is where the QP's path leaves the lane although its bounds let it
-            through (a bend too tight for the footprint, where the bounds' linearisation fails).
+            through (where the bounds' linearisation fails: a bend too tight for the footprint, or a
+            path steeper than the bounds expect, swerving round an obstacle or from the ego's pose).
     """
 
     path: Path | None

@@ -14,13 +14,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from planner import pipeline
 from planner.candidates import generate_candidates
 from planner.collision import box_corners, obstacle_shape, prediction_at
 from planner.config import DEFAULT_CONFIG
 from planner.decision import BlockKind, LaneChoice, ReasonKind
 from planner.frenet import to_cartesian, to_frenet
+from planner.lateral import LateralPlan
 from planner.pipeline import plan
-from planner.problem import DynamicObstacle, Ego, Lane, PlanningProblem, Road, Vehicle
+from planner.problem import DynamicObstacle, Ego, Lane, Obstacle, PlanningProblem, Road, Vehicle
 from planner.reference import build_reference
 from planner.result import PlanResult
 from planner.roads import (
@@ -175,6 +177,58 @@ def test_a_slow_tractor_is_overtaken_when_the_opposite_lane_is_clear() -> None:
     tractor_front = 40.0 + 3.0 * float(run.motion.t[-1]) + 3.0
     assert float(run.motion.x[-1]) - 2.25 > tractor_front  # ahead of it
     assert abs(float(run.motion.d[-1])) < 0.3  # back in its lane
+
+
+def leaving_at(monkeypatch: pytest.MonkeyPatch, s: float) -> list[float]:
+    """Make the plan in the lane leave it at its first knot at or beyond ``s`` [m] with nothing in the
+    way there (:attr:`LateralPlan.leaves`, as a path steeper than its bounds' heading does); the list
+    gets that knot's arc length [m]."""
+    real = pipeline.lateral_stage
+    leave_s: list[float] = []
+
+    def leaving(*args: object, **kwargs: object) -> LateralPlan:
+        plan = real(*args, **kwargs)  # type: ignore[arg-type]
+        if leave_s or "lane" in kwargs:  # a borrow's plan
+            return plan
+        knot = int(np.searchsorted(plan.bounds.s, s))
+        leave_s.append(float(plan.bounds.s[knot]))
+        return replace(plan, blocked=knot, leaves=True)
+
+    monkeypatch.setattr(pipeline, "lateral_stage", leaving)
+    return leave_s
+
+
+def test_a_lane_plan_leaving_the_lane_on_its_way_to_a_slow_tractor_passes_the_tractor(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Mid-swerve round the tractor the lane plan's path leaves the lane 15 m ahead with nothing in the way
+    # there (its own heading): that is no bend to borrow the road for with the tractor as traffic in it,
+    # the tractor is what the borrow passes (before, "oncoming tractor": stop in the lane, then fall back)
+    leave_s = leaving_at(monkeypatch, 15.0)
+    decision = plan(tractor()).diagnostics.decision
+    assert decision.lane is LaneChoice.BORROW_LEFT and decision.reason.kind is ReasonKind.PASSING
+    assert (decision.reason.block, decision.reason.obstacle_id) == (BlockKind.SLOW_VEHICLE, "tractor")
+    assert decision.passing == frozenset({"tractor"})
+    # the borrow from where the lane plan leaves the lane
+    assert decision.corridor is not None and decision.corridor.start <= leave_s[0] + 1e-9
+
+
+@pytest.mark.parametrize(
+    ("obstacle", "block"),
+    [
+        (driving("tractor", 40.0, 0.0, 3.0, length=6.0, width=2.5), BlockKind.SLOW_VEHICLE),
+        (box("parked", 40.0, 0.0, 4.5, 1.8), BlockKind.OBSTACLE),
+    ],
+)
+def test_a_lane_plan_leaving_the_lane_before_a_vehicle_names_the_vehicle_not_a_bend(
+    monkeypatch: pytest.MonkeyPatch, obstacle: Obstacle, block: BlockKind
+) -> None:
+    # without road, the lane plan's path leaving the lane 5 m before what it swerves round (a straight:
+    # no bend) stops there, and the answer says what blocks: the vehicle, moving or parked
+    leaving_at(monkeypatch, 37.75 - 2.25 - 5.0)
+    problem = two_lane_problem(straight(200.0), speed=12.0, obstacles=(obstacle,), road=False)
+    reason = plan(problem).diagnostics.decision.reason
+    assert (reason.kind, reason.block, reason.obstacle_id) == (ReasonKind.NO_ROAD, block, obstacle.id)
 
 
 def test_without_road_a_slow_tractor_is_followed() -> None:
