@@ -63,6 +63,7 @@ __all__ = [
     "SpeedTables",
     "SpeedWeights",
     "integrate_jerk",
+    "steer_jerk",
 ]
 
 #: largest horizon accepted [steps]
@@ -321,6 +322,31 @@ def integrate_jerk(
     np.cumsum(v[:-1] * dt + a[:-1] * (dt**2 / 2) + jerk * (dt**3 / 6), out=s[1:])
     s += s0
     return s, v, a
+
+
+def steer_jerk(v: float, a: float, v_keep: float, dt: float, jmax: float, a_lo: float, a_hi: float) -> float:
+    """The jerk of one step that brings the speed ``v`` towards ``v_keep`` [m/s] as fast as ``|j| ≤ jmax``
+    and ``a_lo ≤ a ≤ a_hi`` allow without overshooting it on the grid.
+
+    The acceleration ``u`` after the step is the one whose fastest release on the grid
+    (:mod:`solvers.speed_profiles`' ``Δv``: ``n`` full-jerk steps and a partial one) ends at ``v_keep``:
+    ``v + (a + u)Δt/2 + Δv(u) = v_keep``. With ``e = v_keep − v − aΔt/2`` and ``q = j_max Δt²``, for
+    ``|u| ∈ [n j_max Δt, (n + 1) j_max Δt]`` that is ``|u|Δt(n + 1) − q n(n + 1)/2 = |e|``, linear in ``u``:
+    ``n`` is the largest with ``q n(n + 1)/2 ≤ |e|`` and ``u`` takes the sign of ``e``; then
+    ``j = (u − a)/Δt`` within the limits. At ``v = v_keep, a = 0`` it is 0: the speed is kept. (The
+    continuous release ``u|u|/(2 j_max)`` undershoots the grid's by up to ``j_max Δt²/8``: steering by it
+    overshoots ``v_keep`` and then swings about it.)
+    """
+    e = v_keep - v - 0.5 * a * dt
+    q = jmax * dt * dt
+    ratio = 8.0 * abs(e) / q if q > 0.0 else 0.0
+    if math.isfinite(ratio):
+        n = math.floor((math.sqrt(1.0 + ratio) - 1.0) / 2.0)
+        u = math.copysign((abs(e) + q * n * (n + 1) / 2.0) / (dt * (n + 1)), e)
+    else:  # a gap no release on the grid spans (an extreme v_keep): as far as the limits allow
+        u = math.copysign(math.inf, e)
+    u = min(max(u, a_lo), a_hi)
+    return min(max((u - a) / dt, -jmax), jmax)
 
 
 @dataclass(frozen=True, eq=False)

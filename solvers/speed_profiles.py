@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from solvers.speed_problem import FloatArray, SpeedProblem, integrate_jerk
+from solvers.speed_problem import FloatArray, SpeedProblem, integrate_jerk, steer_jerk
 
 __all__ = ["braking_profile", "cruise_profile", "limited_profile"]
 
@@ -122,31 +122,6 @@ def cruise_profile(problem: SpeedProblem) -> FloatArray:
     return jerk
 
 
-def _steer(v: float, a: float, v_keep: float, dt: float, jmax: float, a_lo: float, a_hi: float) -> float:
-    """The jerk of one step that brings the speed ``v`` towards ``v_keep`` [m/s] as fast as ``|j| ≤ jmax``
-    and ``a_lo ≤ a ≤ a_hi`` allow without overshooting it on the grid.
-
-    The acceleration ``u`` after the step is the one whose fastest release on the grid (the module
-    docstring's ``Δv``: ``n`` full-jerk steps and a partial one) ends at ``v_keep``:
-    ``v + (a + u)Δt/2 + Δv(u) = v_keep``. With ``e = v_keep − v − aΔt/2`` and ``q = j_max Δt²``, for
-    ``|u| ∈ [n j_max Δt, (n + 1) j_max Δt]`` that is ``|u|Δt(n + 1) − q n(n + 1)/2 = |e|``, linear in ``u``:
-    ``n`` is the largest with ``q n(n + 1)/2 ≤ |e|`` and ``u`` takes the sign of ``e``; then
-    ``j = (u − a)/Δt`` within the limits. At ``v = v_keep, a = 0`` it is 0: the speed is kept. (The
-    continuous release ``u|u|/(2 j_max)`` undershoots the grid's by up to ``j_max Δt²/8``: steering by it
-    overshoots ``v_keep`` and then swings about it.)
-    """
-    e = v_keep - v - 0.5 * a * dt
-    q = jmax * dt * dt
-    ratio = 8.0 * abs(e) / q if q > 0.0 else 0.0
-    if math.isfinite(ratio):
-        n = math.floor((math.sqrt(1.0 + ratio) - 1.0) / 2.0)
-        u = math.copysign((abs(e) + q * n * (n + 1) / 2.0) / (dt * (n + 1)), e)
-    else:  # a gap no release on the grid spans (an extreme v_keep): as far as the limits allow
-        u = math.copysign(math.inf, e)
-    u = min(max(u, a_lo), a_hi)
-    return min(max((u - a) / dt, -jmax), jmax)
-
-
 def _step_count(steps: float) -> int:
     """``⌈steps⌉`` (at least 0), or :data:`_MAX_BRAKING_STEPS` where that is more, infinite or NaN (an
     extreme vehicle's ramp or stop: the braking is cut there anyway)."""
@@ -213,9 +188,9 @@ class _Envelope:
 def limited_profile(problem: SpeedProblem, v_keep: float) -> FloatArray:
     """Jerks that drive at ``v_keep`` [m/s] within the path's limit ``v_lim`` (``limit_s``, ``limit_v``).
 
-    Each step takes the jerk that steers towards ``v_keep`` (:func:`_steer`) when full braking from the
-    state after it still keeps ``v ≤ v_lim`` everywhere ahead until it stops (:func:`_brakes_within`, after
-    the quick sufficient test of :class:`_Envelope`);
+    Each step takes the jerk that steers towards ``v_keep`` (:func:`~solvers.speed_problem.steer_jerk`)
+    when full braking from the state after it still keeps ``v ≤ v_lim`` everywhere ahead until it stops
+    (:func:`_brakes_within`, after the quick sufficient test of :class:`_Envelope`);
     otherwise the next step of full braking (:func:`braking_profile`) from the state before it, whose own
     braking was checked the step before. So the limit is kept at the knots wherever full braking from the
     initial state keeps it, and the profile slows before a dip in the limit only as late as it must and
@@ -238,7 +213,7 @@ def limited_profile(problem: SpeedProblem, v_keep: float) -> FloatArray:
         return s + v * dt + a * dt**2 / 2 + j * dt**3 / 6, v + a * dt + j * dt**2 / 2, a + j * dt
 
     for k in range(n):
-        j = _steer(v, a, v_keep, dt, jmax, min(a_lo, a), max(a_hi, a))
+        j = steer_jerk(v, a, v_keep, dt, jmax, min(a_lo, a), max(a_hi, a))
         nxt = after(s, v, a, j)
         releasable = nxt[1] >= 0.0 and _spare_speed(nxt[1], nxt[2], dt, jmax) >= 0.0
         if releasable and (envelope.keeps(*nxt) or _brakes_within(problem, *nxt)):

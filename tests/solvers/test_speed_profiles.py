@@ -10,7 +10,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from solvers.speed_problem import SpeedProblem, integrate_jerk
+from solvers.speed_problem import SpeedProblem, integrate_jerk, steer_jerk
 from solvers.speed_profiles import _brakes_within, _Envelope, braking_profile, cruise_profile, limited_profile
 from tests.solvers.speed_cases import make_problem
 
@@ -82,11 +82,10 @@ def test_limited_profile_slows_for_a_dip_as_late_as_it_must_and_speeds_up_after_
 def test_the_steer_towards_an_extreme_speed_takes_the_jerk_limit() -> None:
     """A ``v_keep`` no release on the grid reaches (an extreme vehicle's cap, ±∞) steers as hard as the
     jerk allows, not into an overflow."""
-    from solvers.speed_profiles import _steer
 
     # up to a_max = 2.5 within the step (j = 25); down, the jerk limit (30) binds before a_min = −6
     for v_keep, jerk in ((np.inf, 25.0), (1e308, 25.0), (-np.inf, -30.0), (-1e308, -30.0)):
-        assert _steer(10.0, 0.0, v_keep, 0.1, 30.0, -6.0, 2.5) == pytest.approx(jerk)
+        assert steer_jerk(10.0, 0.0, v_keep, 0.1, 30.0, -6.0, 2.5) == pytest.approx(jerk)
 
 
 def test_limited_profile_from_a_state_that_cannot_keep_the_limit_brakes_fully() -> None:
@@ -118,7 +117,6 @@ def test_the_steer_lands_on_the_kept_speed_on_the_grid(v: float, a: float, share
     """The steer inverts the grid's release: for the speed where a step of jerk ``j`` (within the limit)
     and then the fastest release of the acceleration on the grid (full-jerk steps and a partial one) end,
     it steers with that ``j``."""
-    from solvers.speed_profiles import _steer
 
     jmax = 30.0
     j = share * jmax
@@ -127,7 +125,7 @@ def test_the_steer_lands_on_the_kept_speed_on_the_grid(v: float, a: float, share
     release = [-np.sign(u) * jmax] * full + [-(u - np.sign(u) * jmax * dt * full) / dt]
     _, speed, accel = integrate_jerk(dt, 0.0, v + (a + u) * dt / 2, u, np.array(release))
     assert accel[-1] == pytest.approx(0.0, abs=1e-9)
-    assert _steer(v, a, float(speed[-1]), dt, jmax, -1e9, 1e9) == pytest.approx(j, abs=1e-6)
+    assert steer_jerk(v, a, float(speed[-1]), dt, jmax, -1e9, 1e9) == pytest.approx(j, abs=1e-6)
 
 
 @settings(max_examples=40, deadline=None)
@@ -181,7 +179,7 @@ def test_the_quick_braking_test_never_passes_a_state_whose_braking_breaks_the_li
 def _limited_reference(problem: SpeedProblem, v_keep: float) -> np.ndarray:
     """:func:`limited_profile` as first written: each full stop computed whole (the reference for the
     one that computes only the steps it follows)."""
-    from solvers.speed_profiles import _spare_speed, _steer
+    from solvers.speed_profiles import _spare_speed
 
     dt, n, jmax = problem.dt, problem.steps, problem.jerk_max
     jerk = np.zeros(n)
@@ -193,7 +191,7 @@ def _limited_reference(problem: SpeedProblem, v_keep: float) -> np.ndarray:
         return s + v * dt + a * dt**2 / 2 + j * dt**3 / 6, v + a * dt + j * dt**2 / 2, a + j * dt
 
     for k in range(n):
-        j = _steer(v, a, v_keep, dt, jmax, min(problem.a_min, a), max(problem.a_max, a))
+        j = steer_jerk(v, a, v_keep, dt, jmax, min(problem.a_min, a), max(problem.a_max, a))
         nxt = after(s, v, a, j)
         releasable = nxt[1] >= 0.0 and _spare_speed(nxt[1], nxt[2], dt, jmax) >= 0.0
         if releasable and (envelope.keeps(*nxt) or _brakes_within(problem, *nxt)):
