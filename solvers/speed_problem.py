@@ -66,6 +66,8 @@ __all__ = [
     "steer_jerk",
 ]
 
+#: a speed [m/s] and acceleration [m/s²] this close to 0 are a standstill (rounding)
+_LANDED = 1e-9
 #: largest horizon accepted [steps]
 MAX_STEPS = 1000
 #: affine pieces of the limit's local model per knot (tangent, piece behind, piece ahead)
@@ -253,15 +255,27 @@ class SpeedProblem:
         """``v_lo`` [m/s] at the knots (shape (N + 1,)) and half-way through the steps (shape (N,)).
 
         0, or less where ``a0 < 0`` makes a negative speed unavoidable: the speed under the fastest release
-        of the brake, ``a_k = min(a0 + j_max t_k, 0)``. That is feasible, so the bound is safe; on the grid it
-        is not always tight (a release overshooting to ``a > 0`` for one step can lose up to ``|a0|·Δt/2``
-        less speed).
+        of the brake, ``a_k = min(a0 + j_max t_k, 0)``, and then, if that ends below 0, under the fastest
+        push back to standstill within the jerk limit and the acceleration box (:func:`steer_jerk`). That
+        is feasible, so the bound is safe; on the grid it is not always tight (a release overshooting to
+        ``a > 0`` for one step can lose up to ``|a0|·Δt/2`` less speed). Without the push back the floor
+        kept the lowest speed: a vehicle that stopped braking hard could drift backwards to the horizon.
         """
         if self.a0 >= 0:
             return np.zeros(self.steps + 1), np.zeros(self.steps)
-        dt = self.dt
-        jerk = np.diff(np.minimum(self.a0 + self.jerk_max * self.t, 0.0)) / dt
+        dt, jmax = self.dt, self.jerk_max
+        jerk = np.diff(np.minimum(self.a0 + jmax * self.t, 0.0)) / dt
         _, v, a = integrate_jerk(dt, 0.0, self.v0, self.a0, jerk)
+        released = int(np.argmax(a >= 0.0)) if a[-1] >= 0.0 else self.steps
+        if v[released] < 0.0 and self.a_max > 0.0:  # back to v = 0: a few steps, looped only here
+            a_lo, a_hi = self.accel_bounds()
+            vk, ak = float(v[released]), float(a[released])
+            for k in range(released, self.steps):
+                if abs(vk) <= _LANDED and abs(ak) <= _LANDED:  # standing (the jerks after are 0)
+                    break
+                jerk[k] = steer_jerk(vk, ak, 0.0, dt, jmax, float(a_lo[k + 1]), float(a_hi[k + 1]))
+                vk, ak = vk + ak * dt + jerk[k] * dt**2 / 2, ak + jerk[k] * dt
+            _, v, a = integrate_jerk(dt, 0.0, self.v0, self.a0, jerk)
         half = v[:-1] + a[:-1] * dt / 2 + jerk * dt**2 / 8
         return np.minimum(v, 0.0), np.minimum(half, 0.0)
 

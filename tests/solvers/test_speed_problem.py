@@ -102,6 +102,30 @@ def test_boxes_open_only_as_far_as_an_outside_initial_acceleration_forces() -> N
     assert np.min(stops.speed_floor()[0]) < 0
 
 
+@pytest.mark.parametrize(
+    ("v0", "a0", "jerk_max", "a_max"),
+    [(0.5, -3.0, 1.0, 2.0), (0.346, -4.556, 30.0, 3.0), (0.0, -8.0, 30.0, 0.5), (0.05, -0.5, 2.0, 2.0)],
+)
+def test_a_forced_reversal_is_stopped_as_soon_as_the_limits_allow(
+    v0: float, a0: float, jerk_max: float, a_max: float
+) -> None:
+    # the floor gives way to a0 < 0 only until the backward motion can be stopped: a floor that kept the
+    # lowest speed let a stopped vehicle drift backwards for the rest of the horizon (0.2 m in 6 s at
+    # 0.037 m/s, then the planned positions disagreed with the speeds)
+    problem = make_problem(v0=v0, a0=a0, jerk_max=jerk_max, a_max=a_max, a_min=-8.0, steps=200)
+    v_lo, v_half = problem.speed_floor()
+    standing = np.abs(v_lo) <= 1e-9
+    assert np.min(v_lo) < 0 and standing[-1] and abs(v_half[-1]) <= 1e-9
+    # the release, then the push back to standstill: 0 from there on
+    zero = int(np.argmax(standing & (np.arange(v_lo.size) > np.argmin(v_lo))))
+    assert np.all(standing[zero:]) and np.all(np.abs(v_half[zero:]) <= 1e-9)
+    # as soon as the limits allow: the continuous bang-bang return from the lowest speed, a grid step or two
+    lowest = -float(np.min(v_lo))
+    peak = min(math.sqrt(lowest * jerk_max), a_max)
+    back = 2 * peak / jerk_max + max(lowest - peak**2 / jerk_max, 0.0) / peak
+    assert problem.t[zero] - problem.t[int(np.argmin(v_lo))] <= back + 3 * problem.dt
+
+
 def test_tables_are_computed_once_and_read_only() -> None:
     problem = make_problem(s_stop=50.0, s_lower=np.full(81, -math.inf))
     tables = problem.tables

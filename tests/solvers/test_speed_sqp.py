@@ -165,6 +165,16 @@ def test_acceleration_outside_the_box_is_a_measurement_not_an_error() -> None:
     assert np.min(result.v - floor) >= -1e-6
 
 
+def test_a_vehicle_stopping_with_a_brake_it_cannot_release_in_time_stands_after_it() -> None:
+    # nearly stopped and braking hard (a recorded car): v < 0 is unavoidable for a moment, then it stands
+    problem = make_problem(v0=0.346, a0=-4.556, jerk_max=30.0, a_min=-8.0, a_max=3.0, s_stop=0.02)
+    result = SOLVER.solve(problem)
+    assert_valid(problem, result)
+    assert result.info.usable and np.min(result.v) < 0
+    assert np.all(result.v[5:] >= -1e-6)  # standing (or driving) from 0.5 s on, not drifting backwards
+    assert result.s[-1] >= np.max(result.s) - 0.02  # it went back a few millimetres at most
+
+
 def test_frame_offset_does_not_change_the_profile() -> None:
     base = make_problem(
         v0=15.0, limit_s=[0, 30, 40, 60, 70, 1000], limit_v=[20, 20, 8, 8, 20, 20], s_stop=90.0
