@@ -23,17 +23,19 @@ from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
+import shapely
 from numpy.typing import NDArray
 from scipy.ndimage import maximum_filter1d
 
 from planner.bounds import KnotGeometry, LateralBounds, knot_geometry, lateral_bounds, pass_left
-from planner.collision import FrenetBoxes, box_hits, footprint_extent
+from planner.collision import FrenetBoxes, box_hits, boxes_overlap, footprint_extent, footprints
 from planner.config import DEFAULT_CONFIG, LateralConfig, PlannerConfig
 from planner.ego import EgoFrenet
 from planner.kinematics import body_centre, curve_speed, lateral_curvature
 from planner.lane import lane_bounds
 from planner.problem import Lane, PlanningProblem, Vehicle, speed_cap
 from planner.reference import FloatArray, ReferenceLine
+from planner.st_bounds import static_shapes
 from planner.timing import time_for
 from planner.trajectory import Path, frenet_path
 from planner.validation import (
@@ -46,6 +48,9 @@ from planner.validation import (
 )
 from solvers.lateral_qp import LateralQPProblem, LateralQPResult, LateralQPSolver
 from solvers.result import SolveInfo
+
+#: a path this far outside its lateral bounds [m] breaks them (a relaxed QP's, not rounding)
+_BOUND_TOL = 1e-3
 
 
 def knots(
@@ -736,6 +741,25 @@ def _eased(
     return None
 
 
+def _box_overlaps(
+    ref: ReferenceLine,
+    corridor: _Corridor,
+    qp: LateralQPResult,
+    problem: PlanningProblem,
+    config: PlannerConfig,
+) -> NDArray[np.bool_]:
+    """Per knot and obstacle box of ``corridor``, whether the footprint along the QP's path, turned by the
+    path's own heading error, overlaps the box (the bounds keep clear of them at the candidate's
+    heading); shape (knots, boxes)."""
+    s = corridor.bounds.s
+    one = np.clip(1.0 - ref.kappa_at(s) * qp.d, config.lateral.min_stretch, None)
+    extent = footprint_extent(np.arctan(qp.dd / one), problem.vehicle, 0.0).column()
+    boxes = corridor.boxes
+    return boxes_overlap(
+        s[:, None], qp.d[:, None], extent, boxes.s_min, boxes.s_max, boxes.d_min, boxes.d_max
+    )
+
+
 def _meets_obstacle(
     ref: ReferenceLine,
     corridor: _Corridor,
@@ -743,12 +767,49 @@ def _meets_obstacle(
     problem: PlanningProblem,
     config: PlannerConfig,
 ) -> bool:
-    """Whether the footprint along the QP's path, turned by the path's own heading error, overlaps an
-    obstacle's box of ``corridor`` at a knot (the bounds keep clear of them at the candidate's heading)."""
-    s = corridor.bounds.s
-    one = np.clip(1.0 - ref.kappa_at(s) * qp.d, config.lateral.min_stretch, None)
-    extent = footprint_extent(np.arctan(qp.dd / one), problem.vehicle, 0.0)
-    return bool(np.any(box_hits(corridor.boxes, s, qp.d, extent)))
+    """Whether the footprint along the QP's path meets an obstacle's box of ``corridor`` at a knot
+    (:func:`_box_overlaps`)."""
+    return bool(np.any(_box_overlaps(ref, corridor, qp, problem, config)))
+
+
+def _runs_into(
+    ref: ReferenceLine,
+    corridor: _Corridor,
+    qp: LateralQPResult,
+    path: Path,
+    problem: PlanningProblem,
+    config: PlannerConfig,
+) -> int | None:
+    """The first knot after the start where the QP's ``path`` breaks the bounds of ``corridor`` (by more
+    than :data:`_BOUND_TOL`) and its footprint meets a static obstacle that it did not meet at the start
+    or that begins ahead of the planned point; or None. The boxes (:func:`_box_overlaps`) pick the knots
+    and obstacles, their outlines decide (the boxes of a turned obstacle reach further than it does).
+
+    The bounds keep the footprint clear of the boxes; a relaxed QP's path that breaks them (the vehicle
+    too close to an obstacle to steer round it) would drive into it, and the checks would turn the answer
+    into a fallback: the plan stops before that knot instead.
+    """
+    bounds, boxes = corridor.bounds, corridor.boxes
+    broken = (qp.d > bounds.upper + _BOUND_TOL) | (qp.d < bounds.lower - _BOUND_TOL)
+    broken[0] = False
+    if boxes.count == 0 or not broken.any():
+        return None
+    hit = _box_overlaps(ref, corridor, qp, problem, config)
+    new = ~hit[0] | (boxes.s_min > bounds.s[0])  # (one beside the vehicle now: the checks decide)
+    hit &= new & broken[:, None]
+    knots, which = np.nonzero(hit)
+    if knots.size == 0:
+        return None
+    shapes = dict(static_shapes(problem))  # (the boxes a decision sweeps for movers are left to the checks)
+    ids = [boxes.ids[k] for k in which]
+    known = np.array([i in shapes for i in ids], dtype=bool)
+    if not known.any():
+        return None
+    knots, ids = knots[known], [i for i, ok in zip(ids, known, strict=True) if ok]
+    x, y = body_centre(path.x[knots], path.y[knots], path.heading[knots], problem.vehicle)
+    body = footprints(x, y, path.heading[knots], problem.vehicle)
+    met = knots[shapely.intersects(body, np.array([shapes[i] for i in ids], dtype=object))]
+    return int(met.min()) if met.size else None
 
 
 def _leaves_from(
@@ -790,6 +851,8 @@ class LateralPlan:
         leaves: whether the block is where the QP's path leaves the lane although its bounds let it
             through (where the bounds' linearisation fails: a bend too tight for the footprint, or a
             path steeper than the bounds expect, swerving round an obstacle or from the ego's pose).
+        meets: whether the block is where the QP's path, relaxed past its bounds (no room to steer
+            from where the vehicle is), meets a static obstacle (:func:`_runs_into`).
     """
 
     path: Path | None
@@ -801,6 +864,7 @@ class LateralPlan:
     obstacle_on_hold: bool = False
     waiting: bool = False
     leaves: bool = False
+    meets: bool = False
 
     @property
     def knots(self) -> int:
@@ -810,7 +874,7 @@ class LateralPlan:
     @property
     def block_at(self) -> float:
         """Where a block stops the path [m] (the bounds end before the bounds' own block)."""
-        at_knot = self.obstacle_on_hold or self.waiting or self.leaves
+        at_knot = self.obstacle_on_hold or self.waiting or self.leaves or self.meets
         return float(self.bounds.s[self.blocked]) if at_knot else float(self.bounds.s[-1])
 
     @property
@@ -894,13 +958,17 @@ def lateral_stage(
     )
     if qp.info.usable and not held:
         path = paths.path(bounds.s, qp)
+        # a relaxed path that breaks its bounds into a static obstacle is trusted only up to there
+        met = _runs_into(ref, attempt.corridor, qp, path, problem, config)
         if bounds.blocked is None and not attempt.in_lane:
             # the bounds let the footprint through where the path leaves the lane: that is the block
             # (stop before it; the lane decision may borrow the road round it)
             reach = ref.length - problem.vehicle.front_extent - config.stop_gap
             out = _leaves_from(paths, bounds.s, qp, attempt.corridor.surface, reach)
-            if out is not None:
+            if out is not None and (met is None or out <= met):
                 return LateralPlan(path, qp.info, bounds, out, False, leaves=True)
+        if met is not None and (bounds.blocked is None or met < bounds.blocked):
+            return LateralPlan(path, qp.info, bounds, met, False, meets=True)
         return LateralPlan(path, qp.info, bounds, bounds.blocked, road_end)
     if bounds.blocked is None:
         return LateralPlan(None, qp.info, bounds, None, road_end)

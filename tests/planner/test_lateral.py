@@ -29,7 +29,7 @@ from scenario_roads import Road, arc_piece, straight_piece
 from spies import counted_calls
 
 from planner.bounds import LateralBounds, knot_geometry, lateral_bounds
-from planner.collision import frenet_boxes
+from planner.collision import box_corners, frenet_boxes
 from planner.config import DEFAULT_CONFIG, LateralConfig
 from planner.ego import EgoFrenet
 from planner.lateral import (
@@ -44,6 +44,7 @@ from planner.lateral import (
 )
 from planner.pipeline import plan
 from planner.problem import Ego, Lane, Options, PlanningProblem, PolygonObstacle, Vehicle
+from planner.problem import Road as WholeRoad
 from planner.reference import build_reference
 from planner.roads import demo_problem, straight, u_turn
 from planner.timing import StageTimer
@@ -636,3 +637,30 @@ def test_the_lane_check_of_a_path_far_off_the_road_maps_two_poses(
             assert sum(mapped) == 2 * 10  # the start's outline and the farthest pose's
         full = _Paths(ref, problem).leaves(s, qp, problem.lane)
         assert (not full.any()) is inside, name
+
+
+@pytest.mark.parametrize("road", [False, True])
+@pytest.mark.parametrize("ahead", [4.8, 4.9])
+def test_a_relaxed_path_that_would_run_into_an_obstacle_stops_before_it(road: bool, ahead: float) -> None:
+    # A car standing with its front 3–13 cm from the corner of a parked car turned 0.3 rad into its lane
+    # (a recorded PRI_Barceloneta scene with a swapped ego): the bounds open a way past on the right that
+    # the car cannot steer into from where it stands, the relaxed QP's path breaks them and would drive
+    # into the parked car. It stands, and says what blocks (before: a fallback, "footprint hits obstacle").
+    car = Vehicle(
+        length=4.508, width=1.61, max_acceleration=3.0, max_deceleration=8.0, max_curvature=0.7,
+        wheelbase=2.579, rear_axle_offset=1.4227, max_steering_angle=1.066, max_steering_rate=0.4,
+    )  # fmt: skip
+    corners = box_corners(np.array(20.0 + ahead), np.array(2.12), np.array(-2.836), 5.0, 2.0)
+    problem = PlanningProblem(
+        reference_line=straight(200.0),
+        lane=Lane(1.75, 1.75),
+        ego=Ego(x=20.0, y=0.011, heading=0.0, speed=0.0),
+        obstacles=(PolygonObstacle("parked", corners),),
+        vehicle=car,
+        options=Options(target_speed=19.15, lateral_margin=0.2),
+        road=WholeRoad(5.15, 1.75) if road else None,
+    )
+    result = plan(problem)
+    assert result.status == "stopped"
+    assert result.diagnostics.decision.reason.obstacle_id == "parked"
+    assert float(np.ptp(result.trajectory.x)) < 1e-6
