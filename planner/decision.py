@@ -10,7 +10,9 @@ QP, speed profile) consume them. It runs after the plan in the lane (candidates,
   included; a bend tighter than the vehicle can take within the lane; a lane narrower than the
   vehicle), or a moving obstacle ahead, too wide to pass within the lane, drives much slower than the
   target speed (``slow_share``, ``slow_margin``), or the ego is already outside its lane where the road
-  goes on (it comes back: ``returning``);
+  goes on (it comes back: ``returning``). A goal region that lies in the lane where the plan in it can
+  take the vehicle, before an obstacle or a slow vehicle, keeps the lane (``goal_first``: passing would
+  not bring it nearer, and would drive past it beside the lane; a bend's swing-out is still taken);
 * **borrow** the road on the side that gets past: a bend's outside; beside obstacles, the side whose
   corridor the vehicle fits through (the nearer to the reference if both). The interval is the lane's
   blocked knots (its lateral bounds with the obstacles of the whole road, each passed on its roomier side,
@@ -61,6 +63,7 @@ from planner.collision import FrenetBoxes, box_hits, footprint_extent, frenet_bo
 from planner.config import DEFAULT_CONFIG, PlannerConfig
 from planner.ego import EgoFrenet
 from planner.frenet import to_frenet
+from planner.goal_plan import GoalSetup
 from planner.lane import Corridor, Side, corridor_width, lane_bounds
 from planner.lateral import LateralPlan, knots
 from planner.problem import Lane, PlanningProblem, Road, target_speed
@@ -111,6 +114,8 @@ class ReasonKind(StrEnum):
     NO_PATH = "no_path"
     #: keep: the lane is blocked and the problem has no road beyond it
     NO_ROAD = "no_road"
+    #: keep: the goal's region lies in the lane before what blocks it (reached in the lane)
+    GOAL_FIRST = "goal_first"
 
 
 @dataclass(frozen=True)
@@ -165,6 +170,8 @@ class Reason:
             tail = "no way back into the lane within the path"
         elif kind is ReasonKind.NO_PATH:
             tail = "no path through the road beyond the lane from here"
+        elif kind is ReasonKind.GOAL_FIRST:
+            tail = "the goal lies in the lane before it"
         else:
             tail = "no road beyond the lane"
         return f"{self.blocked}: {tail}" if self.block else tail
@@ -223,10 +230,11 @@ def decide(
     lane_boxes: FrenetBoxes,
     s_end: float,
     config: PlannerConfig = DEFAULT_CONFIG,
+    goal: GoalSetup | None = None,
 ) -> Decision:
     """The lane decision (see the module docstring) after the plan in the lane ``lane_plan``, whose
     candidate ends at ``s_end`` [m]; ``static`` are the static obstacles' outlines and ``lane_boxes``
-    their boxes as the lane plan saw them."""
+    their boxes as the lane plan saw them; ``goal`` the request's goal, if any."""
     road = problem.road
     at = knots(ref, start, s_end, config.lateral)
     out_on = None if road is None else _outside_lane(ref, problem, road, config)
@@ -261,8 +269,17 @@ def decide(
             # its path leaves the lane with nothing in the way there: on its way out round a slow vehicle
             # (a borrow begun), or into a bend before it; the borrow passes that vehicle and covers both
             stops, leaves_at = False, first
+        elif (
+            out_on is None
+            and reason.block is BlockKind.OBSTACLE
+            and _goal_first(problem, goal, float(at[max(first - 1, 0)]), config)
+        ):
+            return _keep(ReasonKind.GOAL_FIRST, reason)
     if not stops and slow is not None:
         reason = Reason(ReasonKind.PASSING, BlockKind.SLOW_VEHICLE, slow.obstacle_id, slow.s)
+        behind = slow.s - problem.vehicle.front_extent  # the planned point following it, at most
+        if out_on is None and _goal_first(problem, goal, behind, config):
+            return _keep(ReasonKind.GOAL_FIRST, reason)
         if slow.swept is None:
             return _keep(ReasonKind.NO_RETURN, reason)
         boxes = _merged(boxes, slow.swept)
@@ -390,6 +407,21 @@ def no_path(decision: Decision) -> Decision:
     if decision.reason.kind is ReasonKind.PASSING_IN_LANE:
         return KEEP_LANE
     return _keep(ReasonKind.NO_PATH, decision.reason)
+
+
+def _goal_first(
+    problem: PlanningProblem, goal: GoalSetup | None, free_to: float, config: PlannerConfig
+) -> bool:
+    """Whether the goal's region lies in the lane where the plan in it can take the vehicle: its centre
+    inside at the first knot with an offset in the region (:attr:`planner.goal_region.RegionOnReference.
+    s_in`) no farther than where the planned point stops, ``stop_gap`` before ``free_to`` [m] (the last
+    free knot, or behind a slow vehicle), and the region not all behind the centre now. Passing the block
+    would not bring the goal nearer."""
+    region = None if goal is None else goal.region
+    if goal is None or region is None or not region.reachable or region.s_out < goal.ego_s:
+        return False
+    centre = free_to - config.stop_gap + problem.vehicle.rear_offset  # (a car plans its rear axle)
+    return region.s_in <= centre
 
 
 def _keep(kind: ReasonKind, block: Reason) -> Decision:

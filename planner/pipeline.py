@@ -70,7 +70,7 @@ def plan(problem: PlanningProblem, config: PlannerConfig = DEFAULT_CONFIG) -> Pl
             solvers.lateral, ref, problem, start, picked.offsets, boxes, timer.remaining_s, config
         )
     with timer.stage("decision"):
-        decision = decide(ref, problem, start, lateral, static, boxes, picked.s_end, config)
+        decision = decide(ref, problem, start, lateral, static, boxes, picked.s_end, config, goal)
     run = replace(run, decision=decision)
     if decision.corridor is None or decision.boxes is None:  # keep the lane
         if decision.wait_at is not None:

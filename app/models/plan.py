@@ -198,7 +198,8 @@ class DecisionReason(ResponseModel):
         "`no_return` (no way back into the lane within the path: a long block, or a slow vehicle it cannot "
         "pass within the horizon), `no_path` (no path through the road from where the vehicle is: too "
         "close to the block to swing out, or the path through it breaks a check), `no_road` (the request "
-        "has no `road`)."
+        "has no `road`), `goal_first` (the request's `goal` region lies in the lane before the obstacle or "
+        "slow vehicle that blocks it: it is reached in the lane)."
     )
     message: str = Field(description="The reason in words; when the lane is blocked, it names what blocks.")
     block: BlockKind | SkipJsonSchema[None] = Field(

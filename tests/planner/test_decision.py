@@ -20,6 +20,8 @@ from planner.collision import box_corners, obstacle_shape, prediction_at
 from planner.config import DEFAULT_CONFIG
 from planner.decision import BlockKind, LaneChoice, ReasonKind
 from planner.frenet import to_cartesian, to_frenet
+from planner.goal import Goal as RequestGoal
+from planner.goal import GoalPolygon
 from planner.lateral import LateralPlan
 from planner.pipeline import plan
 from planner.problem import DynamicObstacle, Ego, Lane, Obstacle, PlanningProblem, Road, Vehicle
@@ -229,6 +231,44 @@ def test_a_lane_plan_leaving_the_lane_before_a_vehicle_names_the_vehicle_not_a_b
     problem = two_lane_problem(straight(200.0), speed=12.0, obstacles=(obstacle,), road=False)
     reason = plan(problem).diagnostics.decision.reason
     assert (reason.kind, reason.block, reason.obstacle_id) == (ReasonKind.NO_ROAD, block, obstacle.id)
+
+
+def lane_region(x0: float, x1: float) -> RequestGoal:
+    """A goal region across the lane (and only it) from ``x0`` to ``x1`` [m] along the straight road."""
+    corners = [[x0, -HALF_LANE], [x1, -HALF_LANE], [x1, HALF_LANE], [x0, HALF_LANE]]
+    return RequestGoal(GoalPolygon(np.array(corners)))
+
+
+@pytest.mark.parametrize("problem", [truck(), tractor()], ids=["parked truck", "slow tractor"])
+def test_a_goal_in_the_lane_before_the_block_is_reached_in_the_lane_not_through_the_road(
+    problem: PlanningProblem,
+) -> None:
+    # passing the block would not bring the goal nearer (and would drive past it beside the lane)
+    before = plan(replace(problem, goal=lane_region(20.0, 32.0))).diagnostics.decision
+    assert before.lane is LaneChoice.KEEP and before.reason.kind is ReasonKind.GOAL_FIRST
+    assert before.reason.obstacle_id in {"truck", "tractor"}
+    assert "the goal lies in the lane before it" in before.reason.message
+    beyond = plan(replace(problem, goal=lane_region(100.0, 112.0))).diagnostics.decision
+    assert beyond.lane is LaneChoice.BORROW_LEFT
+    # one already behind the vehicle says nothing about the block ahead
+    passed = replace(
+        problem, goal=lane_region(-20.0, -10.0), reference_line=problem.reference_line - [30.0, 0.0]
+    )
+    assert plan(passed).diagnostics.decision.lane is LaneChoice.BORROW_LEFT
+
+
+def test_a_goal_before_a_bend_too_tight_for_the_lane_still_swings_out() -> None:
+    # the swing-out is how the vehicle gets round the bend, not a pass beside the lane
+    problem = replace(tight_hairpin(), goal=lane_region(-12.0, -5.0))  # its leg runs from x = −15 m
+    assert plan(problem).diagnostics.decision.lane is plan(tight_hairpin()).diagnostics.decision.lane
+
+
+def test_a_goal_before_a_parked_truck_is_reached_and_the_lane_kept() -> None:
+    problem = replace(truck(), goal=lane_region(40.0, 50.0))
+    run = simulate(problem, duration=10.0)
+    inside = (run.motion.x >= 40.0) & (run.motion.x <= 50.0)
+    assert inside.any() and run.metrics.collisions == 0
+    assert float(np.max(np.abs(run.motion.d))) + 0.5 * problem.vehicle.width < HALF_LANE
 
 
 def test_without_road_a_slow_tractor_is_followed() -> None:
