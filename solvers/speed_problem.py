@@ -24,9 +24,10 @@ exactly as far as the jerk limit forces (the fastest return ``a0 ± j_max t``). 
 against a soft constraint — when full braking cannot keep a limit, the limit is violated (and the violation
 reported). Likewise ``v ≥ 0`` (no reversing) gives way only where ``a0 < 0`` makes it impossible:
 ``v_lo = min(0, v_rec)`` with ``v_rec`` the speed under the fastest release of the brake,
-``a_rec,k = min(a0 + j_max t_k, 0)``. With these bounds the hard constraints always have a solution (the
-release profile), so every QP is feasible. The half-step row keeps a stopped vehicle stopped: with ``v ≥ 0``
-at the knots only, an alternating ``a = ±ε`` would let it creep backwards between them.
+``a_rec,k = min(a0 + j_max t_k, 0)``, then (if that ends below 0) under the fastest push back to
+standstill. With these bounds the hard constraints always have a solution (that profile), so every QP is
+feasible. The half-step row keeps a stopped vehicle stopped: with ``v ≥ 0`` at the knots only, an
+alternating ``a = ±ε`` would let it creep backwards between them.
 
 The soft constraints (the path's speed limit, its end form ``v_end``, the position bounds) and the cost
 ``J`` are in :mod:`solvers.speed_cost`; :class:`solvers.speed_sqp.SpeedSolver` solves the problem by SQP
