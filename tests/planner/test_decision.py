@@ -225,9 +225,10 @@ def test_a_lane_plan_leaving_the_lane_on_its_way_to_a_slow_tractor_passes_the_tr
 def test_a_lane_plan_leaving_the_lane_before_a_vehicle_names_the_vehicle_not_a_bend(
     monkeypatch: pytest.MonkeyPatch, obstacle: Obstacle, block: BlockKind
 ) -> None:
-    # without road, the lane plan's path leaving the lane 5 m before what it swerves round (a straight:
-    # no bend) stops there, and the answer says what blocks: the vehicle, moving or parked
-    leaving_at(monkeypatch, 37.75 - 2.25 - 5.0)
+    # without road, the lane plan's path leaving the lane where its front is 5 m short of what it swerves
+    # round (a straight: no bend) stops there, and the answer says what blocks: the vehicle, moving or
+    # parked (its rear at 37.75 m; the front 2.25 m ahead of the planned point)
+    leaving_at(monkeypatch, 37.75 - 5.0 - 2.25)
     problem = two_lane_problem(straight(200.0), speed=12.0, obstacles=(obstacle,), road=False)
     reason = plan(problem).diagnostics.decision.reason
     assert (reason.kind, reason.block, reason.obstacle_id) == (ReasonKind.NO_ROAD, block, obstacle.id)
