@@ -38,7 +38,7 @@ from planner.frenet import to_cartesian  # noqa: E402 (after the path fix)
 from planner.reference import build_reference  # noqa: E402
 from planner.roads import arc, straight  # noqa: E402
 from planner_tools.io import problem_from_json  # noqa: E402
-from planner_tools.loops import seeded_loops  # noqa: E402
+from planner_tools.loops import along_reference, seeded_loops  # noqa: E402
 
 #: a run's footprint this far outside the road [m] is a departure
 DEPARTURE = 0.02
@@ -109,12 +109,7 @@ def scene(seed: int) -> Scene:
     crawl = float(moving.uniform(0.5, 4.0)) if moving.random() < 0.4 else 0.0
     if crawl > 0.0:
         times = np.arange(0.0, 20.0 + 1e-9, 0.2)
-        s_truck = truck_s + crawl * times
-        xy = to_cartesian(ref, s_truck, np.full_like(s_truck, offset))
-        states = [
-            {"t": float(tk), "x": float(x), "y": float(y), "heading": float(ref.heading_at(sk))}
-            for tk, (x, y), sk in zip(times, xy, s_truck, strict=True)
-        ]
+        states = _states(along_reference(ref, times, truck_s + crawl * times, offset))
         request["obstacles"].append({"id": "truck", "length": length, "width": width, "prediction": states})
     else:
         xc, yc, hc = at(truck_s, offset)
@@ -129,15 +124,14 @@ def scene(seed: int) -> Scene:
         start, speed = truck_s + float(rng.uniform(10, 160)), float(rng.uniform(4, 15))
         times = np.arange(0.0, 16.0 + 1e-9, 0.2)
         times = times[start - speed * times >= 0.0]  # until it leaves the reference's start
-        s = start - speed * times
-        xy = to_cartesian(ref, s, np.full_like(s, 3.5))
-        heading = ref.heading_at(s) + math.pi
-        states = [
-            {"t": float(tk), "x": float(x), "y": float(y), "heading": float(h)}
-            for tk, (x, y), h in zip(times, xy, heading, strict=True)
-        ]
+        states = _states(along_reference(ref, times, start - speed * times, 3.5, backwards=True))
         request["obstacles"].append({"id": "oncoming", "length": 4.5, "width": 1.8, "prediction": states})
     return Scene(request, truck_s, length, crawl, oncoming)
+
+
+def _states(prediction: np.ndarray) -> list[dict[str, float]]:
+    """A prediction's rows ``t, x, y, heading`` as the request's states."""
+    return [{"t": t, "x": x, "y": y, "heading": h} for t, x, y, h in prediction.tolist()]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -32,11 +32,10 @@ import numpy as np
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from planner.frenet import to_cartesian  # noqa: E402 (after the path fix)
-from planner.problem import DynamicObstacle, Lane, PlanningProblem, Vehicle  # noqa: E402
+from planner.problem import DynamicObstacle, Lane, PlanningProblem, Vehicle  # noqa: E402 (after the path fix)
 from planner.reference import ReferenceLine, build_reference  # noqa: E402
 from planner.roads import arc, straight, two_lane_problem  # noqa: E402
-from planner_tools.loops import seeded_loops  # noqa: E402
+from planner_tools.loops import along_reference, seeded_loops  # noqa: E402
 
 #: a run's footprint this far outside the lane [m] is a departure
 DEPARTURE = 0.02
@@ -62,10 +61,7 @@ def _along(
     """A 4.5 m long vehicle ``width`` [m] wide at offset ``d`` [m] along the reference from ``s0`` [m] at
     ``speed`` [m/s], predicted over 20 s."""
     t = np.linspace(0.0, 20.0, 81)
-    s = s0 + speed * t
-    xy = to_cartesian(ref, s, np.full_like(s, d))
-    heading = ref.heading_at(np.clip(s, 0.0, ref.length))
-    return DynamicObstacle(obstacle_id, 4.5, width, np.column_stack((t, xy[:, 0], xy[:, 1], heading)))
+    return DynamicObstacle(obstacle_id, 4.5, width, along_reference(ref, t, s0 + speed * t, d))
 
 
 def scene(seed: int) -> Scene:

@@ -1,6 +1,7 @@
 """Closed loops on seeded random scenes, for the bench scripts that drive many of them
 (``bench/borrow_loops.py``, ``bench/pass_loops.py``): their arguments, one simulated run per seed, the
-failures every such script reports, and the cycles per status over all runs.
+failures every such script reports, and the cycles per status over all runs; and the predictions of the
+vehicles they drive along the reference (:func:`along_reference`).
 
     for loop in seeded_loops(__doc__, 10.0, argv, scene, lambda sc: sc.problem):
         loop.report(loop.failures + [...])   # what else this script counts as gone wrong (loop.scene)
@@ -10,12 +11,17 @@ from __future__ import annotations
 
 import argparse
 import collections
+import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
+import numpy as np
+
+from planner.frenet import to_cartesian
 from planner.problem import PlanningProblem
+from planner.reference import FloatArray, ReferenceLine
 from planner_tools.sim import SimResult, simulate
 
 #: a script's scene: what it draws from a seed
@@ -74,3 +80,13 @@ def seeded_loops(
         yield Loop(seed, scene, result, counts)
     wall = time.perf_counter() - began
     print(f"{args.runs} runs of {args.duration:g} s ({wall:.0f} s wall): cycles {dict(statuses)}")
+
+
+def along_reference(
+    ref: ReferenceLine, t: FloatArray, s: FloatArray, d: float, backwards: bool = False
+) -> FloatArray:
+    """A prediction (rows ``t, x, y, heading``) of a vehicle at arc lengths ``s`` [m] at times ``t`` [s],
+    ``d`` [m] beside the reference, heading along it (against it if ``backwards``)."""
+    xy = to_cartesian(ref, s, np.full_like(s, d))
+    heading = ref.heading_at(s) + (math.pi if backwards else 0.0)
+    return np.column_stack((t, xy[:, 0], xy[:, 1], heading))

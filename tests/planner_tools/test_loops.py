@@ -1,12 +1,14 @@
-"""Seeded closed loops for the bench scripts (planner_tools.loops)."""
+"""Seeded closed loops for the bench scripts, and the vehicles they drive (planner_tools.loops)."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from planner.problem import PlanningProblem
+from planner.reference import build_reference
 from planner.roads import box, straight, two_lane_problem
-from planner_tools.loops import seeded_loops
+from planner_tools.loops import along_reference, seeded_loops
 
 
 def _scene(seed: int) -> PlanningProblem:
@@ -30,3 +32,13 @@ def test_each_seed_runs_once_and_what_went_wrong_is_reported(capsys: pytest.Capt
     assert len(out) == 2  # the free run prints nothing; then the summary
     assert out[0].startswith("seed 5: ") and out[0].endswith("; and this")
     assert out[1].startswith("2 runs of 1 s (") and "cycles {" in out[1]
+
+
+def test_a_vehicle_along_the_reference_is_where_and_heading_as_asked() -> None:
+    ref = build_reference(straight(120.0))
+    t = np.linspace(0.0, 4.0, 5)
+    ahead = along_reference(ref, t, 10.0 + 3.0 * t, 1.5)
+    np.testing.assert_allclose(ahead, np.column_stack((t, 10.0 + 3.0 * t, np.full(5, 1.5), np.zeros(5))))
+    towards = along_reference(ref, t, 50.0 - 3.0 * t, -1.5, backwards=True)
+    np.testing.assert_allclose(towards[:, 1:3], np.column_stack((50.0 - 3.0 * t, np.full(5, -1.5))))
+    np.testing.assert_allclose(towards[:, 3], np.pi)
