@@ -215,6 +215,30 @@ def test_a_lane_plan_leaving_the_lane_on_its_way_to_a_slow_tractor_passes_the_tr
     assert decision.corridor is not None and decision.corridor.start <= leave_s[0] + 1e-9
 
 
+def test_a_lane_plan_leaving_the_lane_behind_a_tractor_it_cannot_pass_swings_out_for_the_bend(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # The lane plan's path leaves the lane 15 m ahead with nothing in the way there (a bend tighter than
+    # the car can take in its lane, say); the tractor 77 m ahead is not passed within the horizon. That
+    # is no reason to stop at the bend (before: "no way back" past the tractor, stopped there, the way a
+    # car with a recorded car close behind was run into at a right angle, DEU_Lohmar-26 converted from
+    # its XML): the decision is the bend's, out through the road and back behind the tractor.
+    leave_s = leaving_at(monkeypatch, 15.0)
+    slow = driving("tractor", 80.0, 0.0, 3.0, length=6.0, width=2.5)
+    problem = two_lane_problem(straight(200.0), speed=12.0, obstacles=(slow,), road=True)
+    result = plan(problem)
+    decision = result.diagnostics.decision
+    assert result.status == "ok"
+    assert decision.lane is LaneChoice.BORROW_LEFT and decision.reason.kind is ReasonKind.PASSING
+    assert decision.reason.block is BlockKind.BEND and decision.passing == frozenset()
+    assert decision.corridor is not None and decision.corridor.start <= leave_s[0] + 1e-9
+    # a tractor it can pass is passed from there (above), and without a road it stops as before
+    monkeypatch.undo()
+    leaving_at(monkeypatch, 15.0)
+    kept = plan(replace(problem, road=None)).diagnostics.decision
+    assert kept.lane is LaneChoice.KEEP and kept.reason.kind is ReasonKind.NO_ROAD
+
+
 @pytest.mark.parametrize(
     ("obstacle", "block"),
     [
