@@ -68,7 +68,7 @@ from planner.lane import Corridor, Side, corridor_width, lane_bounds
 from planner.lateral import LateralPlan, knots
 from planner.problem import Lane, PlanningProblem, Road, target_speed
 from planner.reference import FloatArray, ReferenceLine
-from planner.traffic import first_inside, oncoming, slow_vehicle
+from planner.traffic import first_inside, leaders, oncoming, slow_vehicle
 
 
 class LaneChoice(StrEnum):
@@ -337,7 +337,13 @@ def _decide(
         if _ends_beyond(ref, problem, corridor, at, config):
             return _keep(ReasonKind.NO_RETURN, reason), rounds
         band = _needed(problem, through, span, side, config)
-        conflict = oncoming(ref, problem, start, corridor, band, passing, config)
+        # round a bend (nothing passed), the vehicles ahead going its way are followed through it
+        followed = (
+            leaders(ref, problem, start, config)
+            if reason.block is BlockKind.BEND and not passing
+            else passing
+        )
+        conflict = oncoming(ref, problem, start, corridor, band, passing | followed, config)
         if conflict is not None:
             mover, t = conflict
             wait = Reason(ReasonKind.ONCOMING, reason.block, reason.obstacle_id, reason.s, t, mover, side)

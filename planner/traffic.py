@@ -17,6 +17,7 @@ import numpy as np
 from planner.collision import FrenetBoxes, prediction_at
 from planner.config import PlannerConfig
 from planner.ego import EgoFrenet
+from planner.frenet import to_frenet
 from planner.lane import Corridor
 from planner.problem import DynamicObstacle, PlanningProblem, target_speed
 from planner.reference import FloatArray, ReferenceLine
@@ -102,6 +103,24 @@ def oncoming(
         across = (max(-float(np.max(road_right)), band), -float(np.min(lane_right)))
     reach = float(max(np.max(road_left), np.max(road_right)))
     return first_inside(ref, problem, start, (s_lo, s_hi), across, reach, passing, config)
+
+
+def leaders(
+    ref: ReferenceLine, problem: PlanningProblem, start: EgoFrenet, config: PlannerConfig
+) -> frozenset[str]:
+    """The moving obstacles ahead of the vehicle's front now (their Frenet box) that go the way of the
+    reference there (heading closer to it than ``crossing_angle``: not crossing): the vehicles it
+    follows."""
+    movers = moving_obstacles(problem)
+    if not movers:
+        return frozenset()
+    now = [prediction_at(ob, np.zeros(1)) for ob in movers]
+    s_min = frenet_extents(ref, movers, now)[0][:, 0]
+    centre = to_frenet(ref, np.array([st[0, :2] for st in now]))
+    turned = np.array([st[0, 2] for st in now]) - ref.heading_at(centre.s)
+    along = np.cos(turned) > math.cos(config.speed.crossing_angle)
+    ahead = s_min > start.s + problem.vehicle.front_extent
+    return frozenset(ob.id for ob, keep in zip(movers, ahead & along, strict=True) if keep)
 
 
 def first_inside(

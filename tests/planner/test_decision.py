@@ -39,6 +39,7 @@ from planner.roads import (
     wide_u_turn_problem,
 )
 from planner.validation import ViolationKind, folds_back, trajectory_violations
+from planner_tools.loops import along_reference
 from planner_tools.sim import Goal, SimResult, simulate
 
 #: the car of the issue: planned at its rear axle
@@ -315,6 +316,26 @@ def test_a_hairpin_tighter_than_the_vehicle_swings_into_the_opposite_lane(vehicl
     m = run.metrics
     assert m.termination == "goal" and m.status_counts["fallback"] == 0
     assert m.max_lane_departure > 0.3 and m.max_road_departure <= 1e-3
+
+
+def test_a_car_ahead_going_through_the_hairpin_is_followed_not_waited_for_as_oncoming() -> None:
+    # A car 12 m ahead going the same way at 3 m/s swings out through the hairpin too (1.5 m left of the
+    # centre line, its side in the opposite lane): no head-on conflict, the borrow follows it (before,
+    # the car ahead in the borrowed space was "oncoming" and the vehicle waited for it to be gone).
+    problem = tight_hairpin()
+    ref = build_reference(problem.reference_line)
+    ego_s = float(to_frenet(ref, np.array([[problem.ego.x, problem.ego.y]])).s[0])
+    t = np.arange(0.0, 8.05, 0.1)
+    ahead = DynamicObstacle("ahead", 4.5, 1.8, along_reference(ref, t, ego_s + 12.0 + 3.0 * t, 1.5))
+    result = plan(replace(problem, obstacles=(ahead,)))
+    decision = result.diagnostics.decision
+    assert decision.lane is LaneChoice.BORROW_LEFT and decision.reason.block is BlockKind.BEND
+    assert decision.passing == frozenset()
+    in_road(problem, result)  # behind it all the way (the checks' moving obstacles included)
+    # one coming the other way is waited for
+    towards = DynamicObstacle("towards", 4.5, 1.8, along_reference(ref, t, ego_s + 40.0 - 3.0 * t, 2.0, True))
+    waits = plan(replace(problem, obstacles=(towards,))).diagnostics.decision
+    assert waits.lane is LaneChoice.KEEP and waits.reason.oncoming_id == "towards"
 
 
 def test_without_road_the_hairpin_stops_before_the_bend() -> None:

@@ -14,7 +14,7 @@ from planner.ego import start_state
 from planner.problem import DynamicObstacle, Lane, Options
 from planner.reference import build_reference
 from planner.roads import driving, straight, two_lane_problem
-from planner.traffic import ego_times, slow_vehicle
+from planner.traffic import ego_times, leaders, slow_vehicle
 
 ROAD = straight(300.0)
 REF = build_reference(ROAD)
@@ -124,3 +124,24 @@ def test_within_the_lane_a_vehicle_fast_over_the_ground_but_slow_along_the_refer
         two_lane_problem(ROAD, speed=12.0, obstacles=(crossing,), road=False), lane=Lane(4.5, 4.5)
     )
     assert slow_vehicle(REF, problem, start, at, DEFAULT_CONFIG, in_lane=(-1.5, 1.5)) is None
+
+
+def test_the_leaders_are_the_vehicles_ahead_going_the_same_way() -> None:
+    t = np.linspace(0.0, 60.0, 121)
+    crossing = DynamicObstacle(
+        "crossing",
+        4.5,
+        1.8,
+        np.column_stack((t, np.full_like(t, 30.0), -20.0 + 5.0 * t, np.full_like(t, np.pi / 2))),
+    )
+    obstacles = (
+        driving("ahead", 30.0, 0.0, 5.0),  # ahead, same way: a leader, fast or slow
+        driving("slower", 60.0, 1.0, 1.0),
+        driving("towards", 50.0, 3.5, -8.0),  # oncoming
+        driving("behind", -15.0, 0.0, 15.0),  # behind, same way
+        driving("beside", 0.0, 3.5, 10.0),  # beside the vehicle now: not ahead of its front
+        crossing,
+    )
+    problem = two_lane_problem(ROAD, speed=10.0, obstacles=obstacles)
+    start = start_state(REF, problem)
+    assert leaders(REF, problem, start, DEFAULT_CONFIG) == frozenset({"ahead", "slower"})
