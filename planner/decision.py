@@ -25,9 +25,10 @@ QP, speed profile) consume them. It runs after the plan in the lane (candidates,
   ``ramp_time`` of driving long, at least ``min_ramp_lengths`` vehicle lengths;
 * only if the corridor's lateral bounds are free over the interval and its ramps, an arc can take the
   planned point out far enough before the block, the way back into the lane is within the path (or past
-  the reference's end) and no moving obstacle other than those overtaken is in the borrowed space — beyond
-  the lane on that side as far as the vehicle needs, over the interval and its ramps — where and while
-  the vehicle may be there (:func:`planner.traffic.oncoming`). Otherwise keep; where a moving obstacle
+  the reference's end) and no moving obstacle other than those overtaken (round a bend, those ahead going
+  the same way, followed: :func:`planner.traffic.leaders`) is in the borrowed space — beyond the lane on
+  that side as far as the vehicle needs, over the interval and its ramps — where and while the vehicle
+  may be there (:func:`planner.traffic.oncoming`). Otherwise keep; where a moving obstacle
   is the reason and the lane is blocked, stop a swing-out's length before the block
   (:attr:`Decision.wait_at`) to go once it is clear; behind a slow vehicle, follow it.
 
