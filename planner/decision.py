@@ -54,6 +54,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -241,9 +242,14 @@ def decide(
     vehicle; where that is not possible (oncoming traffic, no way back), the decision is the bend's, as
     without the vehicle: a swing-out through it behind the vehicle where the road is clear (a right angle
     tighter than the car can take in its lane behind a slow car), else what keeps the lane there."""
-    decision, rounds = _decide(ref, problem, start, lane_plan, static, lane_boxes, s_end, config, goal)
-    if rounds and decision.lane is LaneChoice.KEEP:
-        return _decide(ref, problem, start, lane_plan, static, lane_boxes, s_end, config, goal, False)[0]
+    once = partial(_decide, ref, problem, start, lane_plan, static, lane_boxes, s_end, config, goal)
+    decision = once(pass_slow=True)
+    # kept behind the slow vehicle its leaving path was taken to swerve round: decide for the bend
+    rounded = (
+        problem.road is not None and lane_plan.stops and lane_plan.blocked is not None and lane_plan.leaves
+    )
+    if rounded and decision.lane is LaneChoice.KEEP and decision.reason.block is BlockKind.SLOW_VEHICLE:
+        return once(pass_slow=False)
     return decision
 
 
@@ -257,20 +263,20 @@ def _decide(
     s_end: float,
     config: PlannerConfig,
     goal: GoalSetup | None,
-    pass_slow: bool = True,
-) -> tuple[Decision, bool]:
-    """:func:`decide`, and whether a lane plan leaving the lane at a bend was taken as one swerving round a
-    slow vehicle (with ``pass_slow`` False it is taken as the bend's)."""
+    pass_slow: bool,
+) -> Decision:
+    """:func:`decide`, where a lane plan leaving the lane at a bend with a slow vehicle ahead is taken as
+    one swerving round that vehicle (``pass_slow``) or as the bend's."""
     road = problem.road
     at = knots(ref, start, s_end, config.lateral)
     out_on = None if road is None else _outside_lane(ref, problem, road, config)
     if not lane_plan.stops and out_on is None:
         within = _pass_within(ref, problem, start, lane_plan, lane_boxes, at, config)
         if within is not None:
-            return within, False
+            return within
     if road is None:
         if not lane_plan.stops or lane_plan.blocked is None:
-            return KEEP_LANE, False
+            return KEEP_LANE
         block = _lane_block(ref, problem, at, lane_plan, lane_plan.blocked, lane_boxes, config)
         if lane_plan.leaves and block.block is BlockKind.BEND:
             # its path leaves the lane with nothing in the way there: round a vehicle too slow to follow
@@ -278,38 +284,37 @@ def _decide(
             slow = slow_vehicle(ref, problem, start, at, config)
             if slow is not None:
                 block = Reason(ReasonKind.NO_ROAD, BlockKind.SLOW_VEHICLE, slow.obstacle_id, slow.s)
-        return _keep(ReasonKind.NO_ROAD, block), False
+        return _keep(ReasonKind.NO_ROAD, block)
     stops = lane_plan.stops and lane_plan.blocked is not None
     looks = not stops or (pass_slow and lane_plan.leaves)  # for a slow vehicle to pass
     slow = slow_vehicle(ref, problem, start, at, config) if looks else None
     if not stops and out_on is None and slow is None:
-        return KEEP_LANE, False
+        return KEEP_LANE
     boxes = frenet_boxes(ref, static, reach=corridor_width(problem, config, road=True))
     first: int | None = None
     reason = Reason(ReasonKind.RETURNING)
     passing: frozenset[str] = frozenset()
     leaves_at: int | None = None
-    rounds = False  # a path leaving the lane at a bend taken as one round the slow vehicle
     if stops and lane_plan.blocked is not None:
         first = min(lane_plan.blocked, at.shape[0] - 1)
         reason = _lane_block(ref, problem, at, lane_plan, first, boxes, config)
         if slow is not None and reason.block is BlockKind.BEND:
             # its path leaves the lane with nothing in the way there: on its way out round a slow vehicle
             # (a borrow begun), or into a bend before it; the borrow passes that vehicle and covers both
-            stops, leaves_at, rounds = False, first, True
+            stops, leaves_at = False, first
         elif (
             out_on is None
             and reason.block is BlockKind.OBSTACLE
             and _goal_first(problem, goal, float(at[max(first - 1, 0)]), config)
         ):
-            return _keep(ReasonKind.GOAL_FIRST, reason), rounds
+            return _keep(ReasonKind.GOAL_FIRST, reason)
     if not stops and slow is not None:
         reason = Reason(ReasonKind.PASSING, BlockKind.SLOW_VEHICLE, slow.obstacle_id, slow.s)
         behind = slow.s - problem.vehicle.front_extent  # the planned point following it, at most
         if out_on is None and _goal_first(problem, goal, behind, config):
-            return _keep(ReasonKind.GOAL_FIRST, reason), rounds
+            return _keep(ReasonKind.GOAL_FIRST, reason)
         if slow.swept is None:
-            return _keep(ReasonKind.NO_RETURN, reason), rounds
+            return _keep(ReasonKind.NO_RETURN, reason)
         boxes = _merged(boxes, slow.swept)
         passing = frozenset(slow.swept.ids)
     blocked = _blocked(ref, problem, _bounds(ref, problem, problem.lane, at, boxes, config), config)
@@ -321,36 +326,33 @@ def _decide(
     span = _span(at, blocked, first, ego_s, problem, config)
     side = out_on or _side(ref, problem, road, at, boxes, span, reason, config)
     if side is None:
-        return _keep(ReasonKind.ROAD_BLOCKED, reason), rounds
+        return _keep(ReasonKind.ROAD_BLOCKED, reason)
     kind = ReasonKind.RETURNING if first is None else ReasonKind.PASSING
     reason = Reason(kind, reason.block, reason.obstacle_id, reason.s, side=side)
     corridor = _corridor(ref, problem, road, side, span, start if out_on else None, config)
     if out_on is None:
         through = _corridor_blocked(ref, problem, corridor, at, boxes, config)
         if through is None:
-            return _keep(ReasonKind.ROAD_BLOCKED, reason), rounds
+            return _keep(ReasonKind.ROAD_BLOCKED, reason)
         # (round a bend, the reference's own curvature takes the vehicle outwards)
         swing = reason.block is BlockKind.BEND or _room_to_swing(
             problem, start, through, span.first, side, config
         )
         if not swing:
-            return _keep(ReasonKind.NO_PATH, reason), rounds
+            return _keep(ReasonKind.NO_PATH, reason)
         if _ends_beyond(ref, problem, corridor, at, config):
-            return _keep(ReasonKind.NO_RETURN, reason), rounds
+            return _keep(ReasonKind.NO_RETURN, reason)
         band = _needed(problem, through, span, side, config)
-        # round a bend (nothing passed), the vehicles ahead going its way are followed through it
-        followed = (
-            leaders(ref, problem, start, config)
-            if reason.block is BlockKind.BEND and not passing
-            else passing
-        )
-        conflict = oncoming(ref, problem, start, corridor, band, passing | followed, config)
+        ignored = passing
+        if reason.block is BlockKind.BEND and not passing:  # vehicles ahead going its way are followed
+            ignored = leaders(ref, problem, start, config)
+        conflict = oncoming(ref, problem, start, corridor, band, ignored, config)
         if conflict is not None:
             mover, t = conflict
             wait = Reason(ReasonKind.ONCOMING, reason.block, reason.obstacle_id, reason.s, t, mover, side)
             # before a block it stops a swing-out's length short; behind a slow vehicle it follows
             wait_at = corridor.start - _min_ramp(problem, config) if stops else -np.inf
-            return Decision(LaneChoice.KEEP, wait, wait_at=wait_at if wait_at > start.s else None), rounds
+            return Decision(LaneChoice.KEEP, wait, wait_at=wait_at if wait_at > start.s else None)
     elif first is not None:  # outside the lane before a block: pass it only if the road stays clear
         conflict = oncoming(ref, problem, start, corridor, _needed_out(problem, side), passing, config)
         if conflict is not None:  # back into the lane where it is, and wait there
@@ -363,7 +365,7 @@ def _decide(
     urgent = span.s_first - start.s < v0 * (v0 / decel)  # within the stop at half deceleration
     passed = _passed(ref, problem, corridor, boxes)
     sides = {ob_id: side == "left" for ob_id, on in zip(boxes.ids, passed, strict=True) if on}
-    return Decision(choice, reason, corridor, boxes, passing, urgent=bool(urgent), sides=sides), rounds
+    return Decision(choice, reason, corridor, boxes, passing, urgent=bool(urgent), sides=sides)
 
 
 def _pass_within(
